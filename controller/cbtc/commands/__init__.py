@@ -1,0 +1,1 @@
+"""Sub-commands of the `cbtc` command line, one module each (see cbtc.cli)."""

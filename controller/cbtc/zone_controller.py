@@ -1,0 +1,242 @@
+"""The zone controller: reports in, estimates, movement authorities and station stops, commands out.
+
+Thin shell around the pure parts: it talks to a bus client (mock broker or a real MQTT broker: the same interface),
+reads time only from the `now_fn` it is given, and keeps per-train state. Each cycle (10 Hz by default) it orders the
+trains along the track, asks the authority policy how far each may go, folds in the station stops, converts that
+limit into the train's own odometer frame and publishes a sealed command.
+
+A train gets no authority while any configured train is unlocated (it could be anywhere), and no extension while the
+data of the train ahead is stale. Reports that fail validation or come from unknown trains are logged and dropped.
+"""
+
+import logging
+import random
+from dataclasses import dataclass, field
+
+from .authority import AuthorityParams
+from .estimate import BoardClock
+from .firmware_modules import wire
+from .train_profile import TrainProfile
+
+log = logging.getLogger("cbtc.zone")
+
+
+@dataclass
+class TrainSetup:
+    """What the controller is told about a train: identity, key, physics, and where it stops."""
+
+    train_id: str
+    key: bytes
+    profile: TrainProfile = field(default_factory=TrainProfile)
+    stops: tuple = ()                   # station names this train stops at
+    dwell_s: tuple = (1.0, 3.0)         # dwell time drawn uniformly from this range at each stop
+
+
+class TrainState:
+    """The controller's picture of one train."""
+
+    def __init__(self, setup: TrainSetup, estimator):
+        self.setup = setup
+        self.estimator = estimator
+        self.clock = BoardClock()
+        self.report = None           # newest accepted report (dict)
+        self.report_recv_s = None
+        self.report_t_s = None       # controller time at which the board sampled it
+        self.last_report_seq = -1
+        self.next_stop = None        # station name or None
+        self.dwell_until_s = None
+        self.dwells = 0
+        self.limit_s = None          # current authority limit along the track (m), for supervision
+        self.eoa_mm = None
+        self.cmd_seq = 0
+        self.reports_rejected = 0
+        self.last_reject = ""
+        self.stop_overruns = 0
+        self.departure = None        # set by the policy during departure control
+
+    @property
+    def train_id(self):
+        return self.setup.train_id
+
+
+class ZoneController:
+    def __init__(self, layout, trains, client, now_fn, policy, params: AuthorityParams = None,
+                 estimator_factory=None, cycle_s: float = 0.1, zone_id: str = "zc1", seed: int = 0):
+        if not trains:
+            raise ValueError("zone controller: no trains configured")
+        self.layout = layout
+        self.client = client
+        self.now_fn = now_fn
+        self.policy = policy
+        self.params = params or AuthorityParams()
+        self.cycle_s = cycle_s
+        self.zone_id = zone_id
+        self._rng = random.Random(seed)
+        self.session_id = self._rng.randrange(1, 2 ** 31 - 1)
+        if estimator_factory is None:
+            from .ukf_estimator import UkfEstimator as estimator_factory
+        self.trains = {}
+        for setup in trains:
+            wire.check_train_id(setup.train_id)
+            if setup.train_id in self.trains:
+                raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
+            for name in setup.stops:
+                layout.station(name)  # raises LayoutError naming the known stations
+            self.trains[setup.train_id] = TrainState(setup, estimator_factory(layout, setup.profile))
+        self.unknown_reports = 0
+        self.invalid_reports = 0
+        self.cycles = 0
+
+    # --- shell: bus ----------------------------------------------------------------------------------------------
+
+    def start(self):
+        """Subscribe to reports and announce the controller (retained)."""
+        self.client.subscribe(wire.REPORT_FILTER, self.on_report)
+        self.client.publish(wire.topic_zone_status(self.zone_id), b"online", retain=True)
+
+    def on_report(self, topic, payload):
+        recv_s = self.now_fn()
+        try:
+            train_id = wire.train_id_of(topic)
+        except wire.WireError as exc:
+            self.invalid_reports += 1
+            log.warning("dropped message on %s: %s", topic, exc.reason)
+            return
+        state = self.trains.get(train_id)
+        if state is None:
+            self.unknown_reports += 1
+            log.warning("dropped report from unknown train %r on %s: configure it or remove the board", train_id, topic)
+            return
+        try:
+            report = wire.decode_report(state.setup.key, topic, payload)
+        except wire.WireError as exc:
+            state.reports_rejected += 1
+            state.last_reject = exc.reason
+            self.invalid_reports += 1
+            log.warning("dropped report of train %s: %s", train_id, exc.reason)
+            return
+        silent_s = None if state.report_recv_s is None else recv_s - state.report_recv_s
+        if report["seq"] <= state.last_report_seq and (silent_s is None or silent_s < 3.0):
+            state.reports_rejected += 1
+            state.last_reject = f"report seq {report['seq']} not after {state.last_report_seq} (replayed or reordered)"
+            log.warning("dropped report of train %s: %s", train_id, state.last_reject)
+            return
+        state.last_report_seq = report["seq"]
+        state.clock.observe(report["t_ms"], recv_s)
+        state.estimator.on_report(report, state.clock)
+        state.report = report
+        state.report_recv_s = recv_s
+        state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+
+    # --- the cycle ---------------------------------------------------------------------------------------------------
+
+    def located(self):
+        """Train states with a position estimate, ordered by head position along the track."""
+        found = [st for st in self.trains.values() if st.report is not None and st.estimator.localized]
+        return sorted(found, key=lambda st: st.estimator.estimate(st.report_t_s).s_m)
+
+    def cycle(self, now_s: float):
+        """Compute and publish a command for every train that has reported."""
+        self.cycles += 1
+        located = self.located()
+        all_located = len(located) == len(self.trains)
+        for i, state in enumerate(located):
+            leader = located[(i + 1) % len(located)] if len(located) > 1 else None
+            if all_located:
+                distance_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
+                distance_m = self._station_stop(state, distance_m, now_s)
+            else:
+                distance_m, v_cap_mps = None, 0.0
+                acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
+            self._command(state, distance_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+
+    def _station_stop(self, state, distance_m, now_s):
+        """Fold the next scheduled stop into the authority; run the dwell clock."""
+        stops = state.setup.stops
+        if not stops:
+            return distance_m
+        est = state.estimator.estimate(state.report_t_s)
+        if state.next_stop is None:
+            state.next_stop = self._next_station(est.s_m, stops, behind_ok_m=0.05)
+        station = self.layout.station(state.next_stop)
+        to_stop_m = self._signed_ahead(est.s_m, station.s_m)
+        standing = state.report["v_mmps"] == 0
+        if state.dwell_until_s is not None:
+            if now_s >= state.dwell_until_s:
+                state.dwell_until_s = None
+                state.dwells += 1
+                state.next_stop = self._next_station(station.s_m + 0.01, stops, behind_ok_m=0.0)
+                return distance_m
+            return min(distance_m, to_stop_m)
+        if standing and abs(to_stop_m) <= station.window_m:
+            low, high = state.setup.dwell_s
+            state.dwell_until_s = now_s + self._rng.uniform(low, high)
+            return min(distance_m, to_stop_m)
+        if to_stop_m < -station.window_m:
+            # passed the stop point beyond its window: count it and move on rather than reverse
+            state.stop_overruns += 1
+            log.warning("train %s overran station %s by %.3f m", state.train_id, station.name, -to_stop_m)
+            state.next_stop = self._next_station(station.s_m + 0.01, stops, behind_ok_m=0.0)
+            return distance_m
+        return min(distance_m, to_stop_m)
+
+    def _signed_ahead(self, from_s, to_s):
+        """Forward distance from `from_s` to `to_s`; on a loop, a point up to 1 m behind is negative."""
+        ahead = self.layout.ahead_m(from_s, to_s)
+        if self.layout.closed and ahead > self.layout.length_m - 1.0:
+            ahead -= self.layout.length_m
+        return ahead
+
+    def _next_station(self, s_m, stops, behind_ok_m):
+        """The first station in `stops` at or ahead of `s_m - behind_ok_m` along the track."""
+        origin = self.layout.wrap(s_m - behind_ok_m)
+        return min(stops, key=lambda name: self.layout.ahead_m(origin, self.layout.station(name).s_m))
+
+    def _command(self, state, distance_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
+        report = state.report
+        if distance_m is None:
+            # no picture of every train: stop now at service rate; the authority never extends
+            v_mps = max(0.0, report["v_mmps"] / 1000.0)
+            stop_m = v_mps * state.setup.profile.reaction_s + v_mps * v_mps / (2.0 * dec_mps2)
+            eoa_mm = report["odo_mm"] + int(stop_m * 1000.0)
+        else:
+            eoa_mm = report["odo_mm"] + int(distance_m * 1000.0)
+        if state.eoa_mm is not None and (distance_m is None or self._leader_stale(state, now_s)):
+            eoa_mm = min(eoa_mm, state.eoa_mm)
+        state.eoa_mm = eoa_mm
+        est = state.estimator.estimate(state.report_t_s)
+        state.limit_s = self.layout.wrap(est.s_m + (eoa_mm - report["odo_mm"]) / 1000.0) if est else None
+        state.cmd_seq += 1
+        payload = wire.encode_command(
+            state.setup.key, state.train_id, state.cmd_seq, self.session_id, report["seq"],
+            int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
+            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)))
+        self.client.publish(wire.topic_command(state.train_id), payload)
+
+    def _leader_stale(self, state, now_s):
+        """True when the data of some other train is older than the limit: the authority must not extend."""
+        for other in self.trains.values():
+            if other is not state and (other.report_recv_s is None or
+                                       now_s - other.report_recv_s > self.params.max_leader_age_s):
+                return True
+        return False
+
+    # --- supervision ------------------------------------------------------------------------------------------------
+
+    def snapshot(self, now_s: float) -> dict:
+        """A JSON-ready picture of every train, as the controller sees it."""
+        out = {}
+        for train_id, st in self.trains.items():
+            est = st.estimator.estimate(now_s) if st.report is not None and st.estimator.localized else None
+            out[train_id] = {
+                "located": est is not None,
+                "s_m": None if est is None else round(est.s_m, 4),
+                "v_mps": None if est is None else round(est.v_mps, 4),
+                "sigma_s_m": None if est is None else round(est.sigma_s_m, 4),
+                "limit_s_m": None if st.limit_s is None else round(st.limit_s, 4),
+                "mode": None if st.report is None else st.report["mode"],
+                "faults": [] if st.report is None else list(st.report["flt"]),
+                "next_stop": st.next_stop,
+                "reports_rejected": st.reports_rejected,
+            }
+        return out

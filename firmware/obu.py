@@ -1,0 +1,275 @@
+"""The OnboardUnit: the train's loop logic, written once for the real board and for every virtual train.
+
+Drivers are injected (encoder, ips, rfid, motor: see firmware/drivers/ and the simulator's drivers), and so is
+`publish(topic, payload)`. The shell calls `step(now_ms)` every few ms and `on_message(topic, payload, now_ms)` for
+each MQTT message; `now_ms` is a monotonic, non-wrapping board time in ms. Nothing here reads a clock or a socket.
+
+What one step does: sample the encoder, the IPS and the RFID reader; supervise the movement authority (the end of
+authority is a value of the train's own odometer, so it holds between commands); ramp a speed reference under the
+braking curve to that end; run the speed PI loop to a motor duty; report at a fixed rate. When the newest valid command
+has expired, the target speed is zero: the train brakes to a stop and stays braked. If the speed ever exceeds the
+braking curve by a margin, the unit trips: motor brake until standstill.
+"""
+
+from math import sqrt
+
+import wire
+
+DEFAULTS = {
+    "counts_per_m": 1000,     # encoder counts per metre of travel (calibrate: cbtc calibrate encoder)
+    "report_ms": 100,         # report period (ms)
+    "v_max_mmps": 600,        # line speed ceiling of this train (mm/s)
+    "v_noload_mmps": 750,     # speed at 100 % duty, for the PI feed-forward (mm/s)
+    "acc_mmps2": 600,         # acceleration when a command does not say (mm/s^2)
+    "dec_mmps2": 800,         # service deceleration when a command does not say (mm/s^2)
+    "kp": 0.05,               # PI proportional gain (% duty per mm/s)
+    "ki": 0.25,               # PI integral gain (% duty per mm of accumulated error)
+    "reaction_ms": 120,       # time from a speed excess to braking effect, counted into the braking curve (ms)
+    "speed_window_ms": 100,   # encoder speed is counts over this window (ms)
+    "trip_margin_mmps": 80,   # speed above the braking curve that trips the emergency brake (mm/s)
+    "max_data_age_ms": 1000,  # a command based on an older report of ours is stale and refused (ms)
+    "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
+    "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
+    "stop_window_mm": 10,     # this close to the end of authority the train brakes to standstill and holds (mm)
+}
+
+_HISTORY = 12          # reports remembered for matching commands to the report they are based on
+_SPEED_RING = 8        # encoder snapshots kept for the speed estimate
+
+
+class OnboardUnit:
+    def __init__(self, train_id, key, encoder, ips, rfid, motor, publish, config=None):
+        self.train_id = wire.check_train_id(train_id)
+        self._key = key
+        self.encoder = encoder
+        self.ips = ips
+        self.rfid = rfid
+        self.motor = motor
+        self._publish = publish
+        cfg = dict(DEFAULTS)
+        if config:
+            for name in config:
+                if name not in DEFAULTS:
+                    raise ValueError("unknown OnboardUnit config key %r; known: %s" % (name, ", ".join(sorted(DEFAULTS))))
+                cfg[name] = config[name]
+        self.cfg = cfg
+        self._report_topic = wire.topic_report(train_id)
+        self._cmd_topic = wire.topic_command(train_id)
+        # odometry
+        self.odo_mm = 0
+        self.v_mmps = 0
+        self._ring_t = [0] * _SPEED_RING
+        self._ring_odo = [0] * _SPEED_RING
+        self._ring_i = 0
+        self._ring_n = 0
+        self._last_move_ms = 0
+        # authority
+        self.sid = -1
+        self.cseq = -1
+        self.cmd = None
+        self.cmd_expiry_ms = 0
+        self.eoa_mm = 0               # no authority at start: the end of authority is where the train stands
+        self.rejected = 0
+        self.last_reject = ""
+        self._rejected_since_report = False
+        # control
+        self.mode = "idle"
+        self.v_ref_mmps = 0.0
+        self._integral = 0.0
+        self.duty_pct = 0
+        self._last_step_ms = None
+        # reporting
+        self.seq = 0
+        self._next_report_ms = 0
+        self._sent_seq = [-1] * _HISTORY
+        self._sent_t = [0] * _HISTORY
+        self._sent_odo = [0] * _HISTORY
+        self._ips_fix = None
+        self._tags = []
+        self.faults = []
+        self.sensor_errors = 0
+        self.last_sensor_error = ""
+        self.link_ok = True
+
+    # --- commands ------------------------------------------------------------------------------------------
+
+    def on_message(self, topic, payload, now_ms):
+        """Take one MQTT message; a command that fails any check is counted, remembered and ignored."""
+        if topic != self._cmd_topic:
+            return
+        try:
+            self._accept(wire.decode_command(self._key, topic, payload), now_ms)
+        except wire.WireError as exc:
+            self.rejected += 1
+            self.last_reject = exc.reason
+            self._rejected_since_report = True
+
+    def _accept(self, cmd, now_ms):
+        if cmd["sid"] == self.sid and cmd["seq"] <= self.cseq:
+            raise wire.WireError("replayed command: seq %d of session %d is not after %d" % (cmd["seq"], cmd["sid"], self.cseq))
+        slot = cmd["rseq"] % _HISTORY
+        if self._sent_seq[slot] != cmd["rseq"]:
+            raise wire.WireError("stale command: it is based on report %d, which is not among our last %d" % (cmd["rseq"], _HISTORY))
+        age_ms = now_ms - self._sent_t[slot]
+        if age_ms > self.cfg["max_data_age_ms"]:
+            raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)" % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
+        self.sid = cmd["sid"]
+        self.cseq = cmd["seq"]
+        self.cmd = cmd
+        self.cmd_expiry_ms = self._sent_t[slot] + cmd["ttl_ms"]
+        self.eoa_mm = cmd["eoa_mm"]
+
+    def command_valid(self, now_ms):
+        return self.cmd is not None and now_ms < self.cmd_expiry_ms
+
+    # --- the loop -----------------------------------------------------------------------------------------------
+
+    def step(self, now_ms):
+        """One pass of the loop at board time `now_ms` (ms)."""
+        dt_s = 0.0 if self._last_step_ms is None else (now_ms - self._last_step_ms) / 1000.0
+        self._last_step_ms = now_ms
+        self._sample(now_ms)
+        self._control(now_ms, dt_s)
+        if now_ms >= self._next_report_ms:
+            self._report(now_ms)
+            self._next_report_ms = now_ms + self.cfg["report_ms"]
+
+    def _sensor_failed(self, name, exc):
+        self.sensor_errors += 1
+        self.last_sensor_error = "%s: %s" % (name, exc)
+
+    def _sample(self, now_ms):
+        try:
+            count = self.encoder.count()
+            odo_mm = count * 1000 // self.cfg["counts_per_m"]
+        except Exception as exc:  # a failed sensor is reported, never allowed to stop the loop
+            self._sensor_failed("encoder", exc)
+            odo_mm = self.odo_mm
+        if odo_mm != self.odo_mm:
+            self._last_move_ms = now_ms
+        self.odo_mm = odo_mm
+        self._update_speed(now_ms)
+        try:
+            fix = self.ips.poll(now_ms)
+            if fix is not None:
+                self._ips_fix = [fix[0], fix[1], fix[2]]
+        except Exception as exc:
+            self._sensor_failed("ips", exc)
+        try:
+            uid = self.rfid.poll(now_ms)
+            if uid is not None and len(self._tags) < wire.MAX_TAGS:
+                self._tags.append([uid, self.odo_mm, now_ms])
+        except Exception as exc:
+            self._sensor_failed("rfid", exc)
+
+    def _update_speed(self, now_ms):
+        i = self._ring_i
+        self._ring_t[i] = now_ms
+        self._ring_odo[i] = self.odo_mm
+        self._ring_i = (i + 1) % _SPEED_RING
+        if self._ring_n < _SPEED_RING:
+            self._ring_n += 1
+        # oldest snapshot inside the window (at least the previous one)
+        best = -1
+        for k in range(1, self._ring_n):
+            j = (i - k) % _SPEED_RING
+            best = j
+            if now_ms - self._ring_t[j] >= self.cfg["speed_window_ms"]:
+                break
+        if best < 0 or now_ms == self._ring_t[best]:
+            self.v_mmps = 0
+        else:
+            self.v_mmps = (self.odo_mm - self._ring_odo[best]) * 1000 // (now_ms - self._ring_t[best])
+
+    def braking_curve_mmps(self, dec_mmps2):
+        """Highest speed (mm/s) from which the train still stops at its end of authority, reaction time counted."""
+        dist_mm = self.eoa_mm - self.odo_mm - self.v_mmps * self.cfg["reaction_ms"] / 1000.0
+        if dist_mm <= self.cfg["stop_window_mm"]:
+            return 0.0
+        return sqrt(2.0 * dec_mmps2 * dist_mm)
+
+    def _control(self, now_ms, dt_s):
+        cfg = self.cfg
+        if self.command_valid(now_ms):
+            cmd = self.cmd
+            v_cap = min(cmd["v_mmps"], cfg["v_max_mmps"])
+            acc = cmd["acc"]
+            dec = cmd["dec"]
+            mode = "run"
+        else:
+            v_cap = 0
+            acc = cfg["acc_mmps2"]
+            dec = cfg["dec_mmps2"]
+            mode = "idle" if self.cmd is None else "stop"
+        v_curve = self.braking_curve_mmps(dec)
+        if self.mode == "trip":
+            if self.v_mmps > 0:
+                self._brake()
+                return
+            self.mode = mode
+        if self.v_mmps > v_curve + cfg["trip_margin_mmps"]:
+            self.mode = "trip"
+            self._brake()
+            return
+        self.mode = mode
+        v_target = min(v_cap, v_curve)
+        if v_target > self.v_ref_mmps:
+            self.v_ref_mmps = min(v_target, self.v_ref_mmps + acc * dt_s)
+        else:
+            self.v_ref_mmps = max(v_target, self.v_ref_mmps - dec * dt_s)
+        if self.v_ref_mmps <= 0 and self.v_mmps <= 0:
+            self._brake()
+            return
+        error = self.v_ref_mmps - self.v_mmps
+        self._integral += error * dt_s
+        limit = 100.0 / cfg["ki"]
+        self._integral = max(-limit, min(limit, self._integral))
+        duty = self.v_ref_mmps * 100.0 / cfg["v_noload_mmps"] + cfg["kp"] * error + cfg["ki"] * self._integral
+        self.duty_pct = int(max(0.0, min(100.0, duty)))
+        self.motor.drive(self.duty_pct)
+
+    def _brake(self):
+        self.v_ref_mmps = 0.0
+        self._integral = 0.0
+        self.duty_pct = 0
+        self.motor.brake()
+
+    # --- reporting ----------------------------------------------------------------------------------------------
+
+    def _faults(self, now_ms):
+        faults = []
+        last_fix = getattr(self.ips, "last_fix_ms", None)
+        if last_fix is None or now_ms - last_fix > self.cfg["ips_silent_ms"]:
+            faults.append("ips_silent")
+        if getattr(self.ips, "crc_errors", 0):
+            faults.append("ips_crc")
+        if not getattr(self.rfid, "present", True):
+            faults.append("rfid_absent")
+        if self.duty_pct > 30 and now_ms - self._last_move_ms > self.cfg["stall_ms"]:
+            faults.append("enc_stall")
+        if self.cmd is not None and not self.command_valid(now_ms):
+            faults.append("cmd_timeout")
+        if self._rejected_since_report:
+            faults.append("cmd_reject")
+        if not self.link_ok:
+            faults.append("broker_lost")
+        return faults
+
+    def _report(self, now_ms):
+        self.faults = self._faults(now_ms)
+        seq = self.seq
+        slot = seq % _HISTORY
+        self._sent_seq[slot] = seq
+        self._sent_t[slot] = now_ms
+        self._sent_odo[slot] = self.odo_mm
+        payload = wire.encode_report(self._key, self.train_id, seq, now_ms, self.odo_mm, self.v_mmps, self.duty_pct,
+                                     self.mode, self.cseq, self._ips_fix, self._tags, self.faults)
+        self.seq = seq + 1
+        self._ips_fix = None
+        self._tags = []
+        self._rejected_since_report = False
+        try:
+            self._publish(self._report_topic, payload)
+        except Exception as exc:  # the shell owns reconnecting; a lost report is not fatal
+            self.link_ok = False
+            self.last_sensor_error = "publish: %s" % exc

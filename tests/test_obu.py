@@ -1,0 +1,143 @@
+"""The OnboardUnit's safety behaviour with scripted drivers: no authority no motion, watchdog, replay, staleness, trip."""
+
+import pytest
+
+from cbtc.firmware_modules import obu, wire
+from fake_drivers import BrokenSensor, FakeEncoder, FakeIps, FakeMotor, FakeRfid
+
+KEY = b"0123456789abcdef"
+CMD = "cbtc/train/A/cmd"
+
+
+class Bench:
+    def __init__(self, **drivers):
+        self.sent = []
+        self.enc = drivers.get("encoder", FakeEncoder())
+        self.motor = FakeMotor()
+        self.unit = obu.OnboardUnit("A", KEY, self.enc, drivers.get("ips", FakeIps()), drivers.get("rfid", FakeRfid()),
+                                    self.motor, lambda topic, payload: self.sent.append((topic, payload)),
+                                    {"counts_per_m": 1000})
+        self.now_ms = 0
+        self.cmd_seq = 0
+
+    def step(self, ms=20, v_mmps=None):
+        """Advance board time; optionally move the train at v_mmps (the encoder counts 1 per mm)."""
+        self.now_ms += ms
+        if v_mmps:
+            self.enc.counts += v_mmps * ms // 1000
+        self.unit.step(self.now_ms)
+
+    def last_report(self):
+        return wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])
+
+    def command(self, v_mmps=500, eoa_mm=5000, ttl_ms=800, sid=1, seq=None, rseq=None, key=KEY):
+        if seq is None:
+            self.cmd_seq += 1
+            seq = self.cmd_seq
+        rseq = self.last_report()["seq"] if rseq is None else rseq
+        payload = wire.encode_command(key, "A", seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800)
+        self.unit.on_message(CMD, payload, self.now_ms)
+        return payload
+
+
+def test_no_command_means_no_motion():
+    bench = Bench()
+    for _ in range(50):
+        bench.step()
+    assert bench.motor.mode == "brake"
+    assert bench.last_report()["mode"] == "idle"
+
+
+def test_a_valid_command_drives_and_expiry_brakes_to_a_stop():
+    bench = Bench()
+    bench.step()
+    bench.command()
+    bench.step()
+    assert bench.motor.mode == "drive" and bench.motor.duty_pct > 0
+    assert bench.unit.mode == "run"
+    # run for a while, renewing the command each report, then stop sending
+    for _ in range(50):
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+        if bench.now_ms % 100 == 0:
+            bench.command()
+    assert bench.unit.v_ref_mmps > 300
+    expiry = bench.unit.cmd_expiry_ms
+    while bench.now_ms < expiry:
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    refs = []
+    for _ in range(60):
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+        refs.append(bench.unit.v_ref_mmps)
+    assert bench.unit.mode == "stop"
+    assert all(b <= a for a, b in zip(refs, refs[1:])), "the speed reference only falls after expiry"
+    assert refs[-1] == 0 and bench.motor.mode == "brake"
+    assert "cmd_timeout" in bench.last_report()["flt"]
+
+
+def test_forged_replayed_and_stale_commands_are_refused_and_counted():
+    bench = Bench()
+    bench.step()
+    bench.command(key=b"not the real key")
+    assert bench.unit.cmd is None and "authentication" in bench.unit.last_reject
+    good = bench.command()
+    assert bench.unit.cmd is not None
+    bench.unit.cmd = None
+    bench.unit.on_message(CMD, good, bench.now_ms)
+    assert bench.unit.cmd is None and "replayed" in bench.unit.last_reject
+    # a command based on a report that is too old
+    old_seq = bench.last_report()["seq"]
+    for _ in range(60):
+        bench.step()
+    bench.command(rseq=old_seq)
+    assert bench.unit.cmd is None and "stale" in bench.unit.last_reject
+    bench.command(rseq=10_000)
+    assert "stale" in bench.unit.last_reject
+    assert bench.unit.rejected == 4
+    bench.step(ms=100)
+    assert "cmd_reject" in bench.last_report()["flt"]
+
+
+def test_a_new_controller_session_is_accepted_with_a_fresh_report():
+    bench = Bench()
+    bench.step()
+    bench.command(sid=1, seq=50)
+    bench.step(ms=100)
+    bench.command(sid=2, seq=1)
+    assert bench.unit.sid == 2 and bench.unit.cseq == 1
+
+
+def test_overspeed_against_the_braking_curve_trips_the_brake():
+    bench = Bench()
+    bench.step()
+    bench.command(v_mmps=500, eoa_mm=100)
+    # the train is pushed at 600 mm/s with only 100 mm of authority left
+    for _ in range(5):
+        bench.step(v_mmps=600)
+    assert bench.unit.mode == "trip" and bench.motor.mode == "brake"
+
+
+def test_the_train_never_passes_its_end_of_authority_in_a_closed_loop():
+    """Kinematic loop: the encoder follows the speed reference; the head stops before eoa."""
+    bench = Bench()
+    bench.step()
+    bench.command(v_mmps=500, eoa_mm=1500, ttl_ms=10_000)
+    for _ in range(400):
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    assert bench.unit.odo_mm <= 1500
+    assert bench.unit.odo_mm > 1300, "it uses its authority"
+    assert bench.motor.mode == "brake"
+
+
+def test_broken_sensors_are_reported_and_never_stop_the_loop():
+    bench = Bench(ips=BrokenSensor(), rfid=BrokenSensor(), encoder=BrokenSensor())
+    for _ in range(20):
+        bench.step()
+    report = bench.last_report()
+    assert bench.unit.sensor_errors >= 3 * 19
+    assert {"ips_silent", "rfid_absent"} <= set(report["flt"])
+    assert bench.motor.mode == "brake"
+
+
+def test_unknown_config_key_is_named():
+    with pytest.raises(ValueError, match="counts_per_metre"):
+        obu.OnboardUnit("A", KEY, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print, {"counts_per_metre": 3})

@@ -1,0 +1,96 @@
+"""The wire protocol: authentication, validation with reasons, round trips (CPython; the unix-port run is in test_firmware_mpy)."""
+
+import hmac
+import hashlib
+import json
+
+import pytest
+
+from cbtc.firmware_modules import wire
+
+KEY = bytes(range(16))
+
+
+def report(**changes):
+    fields = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3,
+                  ips=[950, 100, -200], tags=[["04A1B2C3D4", 1200, 990]], faults=["ips_crc"])
+    fields.update(changes)
+    return wire.encode_report(KEY, "A", **fields)
+
+
+def test_hmac_matches_the_standard_library():
+    for key in (b"k", KEY, b"x" * 64, b"y" * 100):
+        for msg in (b"", b"abc", b"z" * 1000):
+            assert wire.hmac_sha256(key, msg) == hmac.new(key, msg, hashlib.sha256).digest()
+
+
+def test_report_round_trip():
+    msg = wire.decode_report(KEY, "cbtc/train/A/report", report())
+    assert msg["odo_mm"] == 1234 and msg["ips"] == [950, 100, -200] and msg["tags"][0][0] == "04A1B2C3D4"
+
+
+def test_command_round_trip():
+    payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
+    msg = wire.decode_command(KEY, "cbtc/train/A/cmd", payload)
+    assert (msg["seq"], msg["sid"], msg["rseq"], msg["eoa_mm"], msg["ttl_ms"]) == (5, 99, 7, 3000, 800)
+
+
+def reseal(body: dict, topic="cbtc/train/A/report"):
+    return wire.seal(KEY, topic, json.dumps(body).encode())
+
+
+@pytest.mark.parametrize("change, reason", [
+    ({"v": 2}, "version 2"),
+    ({"k": "cmd"}, "kind"),
+    ({"id": "B"}, "names train 'B'"),
+    ({"seq": -1}, "'seq'"),
+    ({"seq": "7"}, "must be an integer"),
+    ({"duty": 150}, "'duty'"),
+    ({"mode": "fly"}, "'mode'"),
+    ({"ips": [1, 2]}, "'ips'"),
+    ({"tags": [["x", 1]]}, "'tags'"),
+    ({"flt": ["meltdown"]}, "'flt'"),
+])
+def test_invalid_report_fields_are_rejected_with_the_reason(change, reason):
+    body = json.loads(report().rsplit(b"#", 1)[0])
+    body.update(change)
+    with pytest.raises(wire.WireError) as err:
+        wire.decode_report(KEY, "cbtc/train/A/report", reseal(body))
+    assert reason in err.value.reason
+
+
+@pytest.mark.parametrize("payload, reason", [
+    (b"", "no '#<mac>'"),
+    (b"not json#00", "fails authentication"),
+    (b"x" * 2000, "limit"),
+    ("text", "not bytes"),
+])
+def test_malformed_payloads_are_rejected(payload, reason):
+    with pytest.raises(wire.WireError) as err:
+        wire.decode_report(KEY, "cbtc/train/A/report", payload)
+    assert reason in err.value.reason
+
+
+def test_sealed_garbage_is_rejected_as_not_json():
+    with pytest.raises(wire.WireError, match="not JSON"):
+        wire.decode_report(KEY, "cbtc/train/A/report", wire.seal(KEY, "cbtc/train/A/report", b"\xff\x00garbage"))
+
+
+def test_wrong_key_tampering_and_topic_swap_fail_authentication():
+    good = report()
+    with pytest.raises(wire.WireError, match="authentication"):
+        wire.decode_report(b"another key 1234", "cbtc/train/A/report", good)
+    tampered = good.replace(b'"odo_mm":1234', b'"odo_mm":9234')
+    with pytest.raises(wire.WireError, match="authentication"):
+        wire.decode_report(KEY, "cbtc/train/A/report", tampered)
+    cmd = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
+    with pytest.raises(wire.WireError):
+        wire.decode_command(KEY, "cbtc/train/B/cmd", cmd)
+
+
+@pytest.mark.parametrize("topic", ["cbtc/train/A", "cbtc/train//report", "x/train/A/report", "cbtc/train/A B/report",
+                                   "cbtc/train/" + "X" * 17 + "/report"])
+def test_bad_topics_name_the_problem(topic):
+    with pytest.raises(wire.WireError) as err:
+        wire.train_id_of(topic)
+    assert "train id" in err.value.reason or "not cbtc/train" in err.value.reason

@@ -1,0 +1,1 @@
+"""Track layouts shipped with the package (YAML)."""
