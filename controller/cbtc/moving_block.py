@@ -9,6 +9,15 @@ class MovingBlockPolicy:
     def __init__(self, params: AuthorityParams = None):
         self.params = params or AuthorityParams()
 
+    def protected_m(self, layout, train_id, spans):
+        """True distance (m) from `train_id`'s head to the point its authority protects: the true tail of the train
+        ahead less S_M. `spans` lists (train_id, head_s, tail_s) in truth. Negative = the protected zone is entered."""
+        head = next(h for t, h, _ in spans if t == train_id)
+        others = [(layout.ahead_m(head, tail), tail) for t, _, tail in spans if t != train_id]
+        if not others:
+            return float("inf")
+        return min(others)[0] - self.params.margin_m
+
     def authority(self, zc, state, leader, now_s):
         """(distance_m, v_cap_mps, acc_mps2, dec_mps2) for `state`'s train behind `leader` (None: alone on the track)."""
         layout = zc.layout

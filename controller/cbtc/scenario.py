@@ -163,6 +163,7 @@ class Recorder:
         trains = self.sim.trains
         self.t_s.append(now_s)
         heads = [t.head_s for t in trains]
+        spans = [(t.train_id, t.head_s, t.tail_s) for t in trains]
         order = sorted(range(len(trains)), key=lambda i: heads[i])
         for rank, i in enumerate(order):
             train = trains[i]
@@ -178,10 +179,7 @@ class Recorder:
                 self._colliding[i] = inside
                 self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
             state = self.sim.zc.trains[train.train_id]
-            over = False
-            if state.limit_s is not None:
-                past_m = layout.ahead_m(state.limit_s, heads[i])
-                over = 0.001 < past_m < min(0.5, layout.length_m / 4)
+            over = self.sim.policy.protected_m(layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i]:
                 self.overruns[i] += 1
             self._overrun[i] = over

@@ -143,12 +143,13 @@ class ZoneController:
         for i, state in enumerate(located):
             leader = located[(i + 1) % len(located)] if len(located) > 1 else None
             if all_located:
-                distance_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
-                distance_m = self._station_stop(state, distance_m, now_s)
+                safe_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
+                distance_m = self._station_stop(state, safe_m, now_s)
             else:
-                distance_m, v_cap_mps = None, 0.0
+                safe_m = distance_m = None
+                v_cap_mps = 0.0
                 acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
-            self._command(state, distance_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+            self._command(state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
 
     def _station_stop(self, state, distance_m, now_s):
         """Fold the next scheduled stop into the authority; run the dwell clock."""
@@ -192,7 +193,9 @@ class ZoneController:
         origin = self.layout.wrap(s_m - behind_ok_m)
         return min(stops, key=lambda name: self.layout.ahead_m(origin, self.layout.station(name).s_m))
 
-    def _command(self, state, distance_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
+    def _command(self, state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
+        """Publish the command for `distance_m` (authority with the stop target folded in); `safe_m` is the safety
+        limit alone (None: none granted), kept as `limit_s` on the track for supervision."""
         report = state.report
         if distance_m is None:
             # no picture of every train: stop now at service rate; the authority never extends
@@ -205,7 +208,11 @@ class ZoneController:
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
         est = state.estimator.estimate(state.report_t_s)
-        state.limit_s = self.layout.wrap(est.s_m + (eoa_mm - report["odo_mm"]) / 1000.0) if est else None
+        if est is None:
+            state.limit_s = None
+        else:
+            limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
+            state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
         state.cmd_seq += 1
         payload = wire.encode_command(
             state.setup.key, state.train_id, state.cmd_seq, self.session_id, report["seq"],

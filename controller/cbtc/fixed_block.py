@@ -1,0 +1,114 @@
+"""The fixed-block baseline: block occupancy from track circuits, speed codes, and the same onboard braking curve.
+
+Made to be fair, not a straw man: the same trains, stops, safety margin and onboard supervision as moving block;
+only the authority differs. A train may run to the entry of the first occupied block ahead (its signal), less the
+safety margin; speed codes descend behind an occupied block as in seed 000 (three-aspect: the block just behind an
+occupied block gives code 0, stop at its end; the next one back gives the approach code; further back, line speed).
+Occupancy comes from track circuits, which detect any part of a train in a block: in simulation from the trains'
+true spans (`track_circuits`), otherwise from the estimates widened by k sigma.
+"""
+
+from .authority import AuthorityParams, braking_curve_speed_mps
+from .layout import Block
+
+
+def equal_blocks(length_m: float, count: int):
+    """`count` equal blocks from s = 0 covering a loop of `length_m`."""
+    if count < 2:
+        raise ValueError(f"fixed blocks: need at least 2 blocks on a loop, got {count}")
+    size = length_m / count
+    return tuple(Block(f"B{i + 1}", i * size, (i + 1) * size) for i in range(count))
+
+
+class FixedBlockPolicy:
+    name = "fixed_block"
+
+    def __init__(self, params: AuthorityParams = None, blocks=None, approach_fraction: float = 0.5,
+                 track_circuits=None):
+        self.params = params or AuthorityParams()
+        self._blocks = blocks              # None: the layout's own; int: that many equal blocks; or a tuple of Block
+        self.approach_fraction = approach_fraction
+        self.track_circuits = track_circuits  # callable() -> list of (train_id, head_s, tail_s) in truth, or None
+
+    def blocks(self, layout):
+        if self._blocks is None:
+            if not layout.blocks:
+                raise ValueError(f"layout {layout.name} defines no fixed blocks: give a block count")
+            return layout.blocks
+        if isinstance(self._blocks, int):
+            return equal_blocks(layout.length_m, self._blocks)
+        return tuple(self._blocks)
+
+    def _spans(self, zc):
+        """(train_id, head_s, tail_s) of every train as the track circuits see them."""
+        if self.track_circuits is not None:
+            return self.track_circuits()
+        spans = []
+        for st in zc.trains.values():
+            if st.report is None or not st.estimator.localized:
+                continue
+            est = st.estimator.estimate(st.report_t_s)
+            widen = self.params.k_sigma * est.sigma_s_m
+            spans.append((st.train_id, zc.layout.wrap(est.s_m + widen),
+                          zc.layout.wrap(est.s_m - st.setup.profile.length_m - widen)))
+        return spans
+
+    @staticmethod
+    def _index_at(blocks, layout, s_m):
+        for i, b in enumerate(blocks):
+            if layout.ahead_m(b.start_m, s_m) < layout.ahead_m(b.start_m, b.end_m):
+                return i
+        return len(blocks) - 1
+
+    def occupied(self, zc, exclude_train_id):
+        """Indices of blocks holding any part of another train."""
+        return self._taken(zc.layout, self.blocks(zc.layout), self._spans(zc), exclude_train_id)
+
+    def _taken(self, layout, blocks, spans, exclude_train_id):
+        taken = set()
+        for train_id, head_s, tail_s in spans:
+            if train_id == exclude_train_id:
+                continue
+            i = self._index_at(blocks, layout, tail_s)
+            j = self._index_at(blocks, layout, head_s)
+            taken.add(i)
+            while i != j:
+                i = (i + 1) % len(blocks)
+                taken.add(i)
+        return taken
+
+    def protected_m(self, layout, train_id, spans):
+        """True distance (m) from `train_id`'s head to the entry of the first truly occupied block ahead, less S_M."""
+        blocks = self.blocks(layout)
+        head = next(h for t, h, _ in spans if t == train_id)
+        taken = self._taken(layout, blocks, spans, train_id)
+        i = self._index_at(blocks, layout, head)
+        j = (i + 1) % len(blocks)
+        while j not in taken and j != i:
+            j = (j + 1) % len(blocks)
+        if j == i:
+            return float("inf")
+        return layout.ahead_m(head, blocks[j].start_m) - self.params.margin_m
+
+    def authority(self, zc, state, leader, now_s):
+        layout = zc.layout
+        profile = state.setup.profile
+        blocks = self.blocks(layout)
+        own = state.estimator.estimate(state.report_t_s)
+        taken = self.occupied(zc, state.train_id)
+        i = self._index_at(blocks, layout, own.s_m)
+        clear_ahead = 0
+        j = (i + 1) % len(blocks)
+        while j not in taken and j != i:
+            clear_ahead += 1
+            j = (j + 1) % len(blocks)
+        if j == i:
+            distance_m = layout.length_m  # alone on the loop
+        else:
+            distance_m = layout.ahead_m(own.s_m, blocks[j].start_m) - self.params.margin_m \
+                - self.params.k_sigma * own.sigma_s_m
+        code_mps = profile.v_max_mps if clear_ahead >= 2 else \
+            (self.approach_fraction * profile.v_max_mps if clear_ahead == 1 else profile.v_max_mps)
+        dead_time_s = self.params.latency_s + profile.reaction_s + max(0.0, now_s - state.report_t_s)
+        v_cap_mps = min(code_mps, braking_curve_speed_mps(distance_m, own.v_mps, profile.beta_s_mps2, dead_time_s))
+        return distance_m, v_cap_mps, profile.accel_max_mps2, profile.beta_s_mps2
