@@ -22,11 +22,13 @@ DEFAULTS = {
     "v_noload_mmps": 750,     # speed at 100 % duty, for the PI feed-forward (mm/s)
     "acc_mmps2": 600,         # acceleration when a command does not say (mm/s^2)
     "dec_mmps2": 800,         # service deceleration when a command does not say (mm/s^2)
+    "emergency_dec_mmps2": 1400,  # what the motor brake delivers: the trip curve (mm/s^2)
     "kp": 0.05,               # PI proportional gain (% duty per mm/s)
     "ki": 0.25,               # PI integral gain (% duty per mm of accumulated error)
-    "reaction_ms": 120,       # time from a speed excess to braking effect, counted into the braking curve (ms)
+    "reaction_ms": 60,        # time from a speed excess to braking effect, counted into the braking curve (ms)
+    "motor_tau_ms": 250,      # motor + inertia time constant, for the acceleration feed-forward (ms)
     "speed_window_ms": 100,   # encoder speed is counts over this window (ms)
-    "trip_margin_mmps": 80,   # speed above the braking curve that trips the emergency brake (mm/s)
+    "trip_margin_mmps": 40,   # speed above the emergency braking curve that trips the motor brake (mm/s)
     "max_data_age_ms": 1000,  # a command based on an older report of ours is stale and refused (ms)
     "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
     "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
@@ -207,16 +209,18 @@ class OnboardUnit:
                 self._brake()
                 return
             self.mode = mode
-        if self.v_mmps > v_curve + cfg["trip_margin_mmps"]:
+        if self.v_mmps > self.braking_curve_mmps(cfg["emergency_dec_mmps2"]) + cfg["trip_margin_mmps"]:
             self.mode = "trip"
             self._brake()
             return
         self.mode = mode
         v_target = min(v_cap, v_curve)
+        v_before = self.v_ref_mmps
         if v_target > self.v_ref_mmps:
             self.v_ref_mmps = min(v_target, self.v_ref_mmps + acc * dt_s)
         else:
             self.v_ref_mmps = max(v_target, self.v_ref_mmps - dec * dt_s)
+        a_ref = (self.v_ref_mmps - v_before) / dt_s if dt_s > 0 else 0.0
         if self.v_ref_mmps <= 0 and self.v_mmps <= 0:
             self._brake()
             return
@@ -224,7 +228,9 @@ class OnboardUnit:
         self._integral += error * dt_s
         limit = 100.0 / cfg["ki"]
         self._integral = max(-limit, min(limit, self._integral))
-        duty = self.v_ref_mmps * 100.0 / cfg["v_noload_mmps"] + cfg["kp"] * error + cfg["ki"] * self._integral
+        # feed-forward of speed and acceleration through the first-order motor, then PI on the speed error
+        v_ff = self.v_ref_mmps + a_ref * cfg["motor_tau_ms"] / 1000.0
+        duty = v_ff * 100.0 / cfg["v_noload_mmps"] + cfg["kp"] * error + cfg["ki"] * self._integral
         self.duty_pct = int(max(0.0, min(100.0, duty)))
         self.motor.drive(self.duty_pct)
 

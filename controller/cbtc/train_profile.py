@@ -31,7 +31,7 @@ class TrainProfile:
     ips_outlier: float = 0.01         # probability a fix is an outlier (0.3-1.0 m off)
     rfid_miss: float = 0.05           # probability a tag passage is not read
     rfid_range_m: float = 0.015       # a tag is read while the reader is within this distance of it
-    reaction_s: float = 0.12          # onboard reaction time counted in the braking curve
+    reaction_s: float = 0.06          # onboard reaction time counted in the braking curve (3 loops of 20 ms)
 
     def __post_init__(self):
         for f in fields(self):
@@ -68,5 +68,7 @@ class TrainProfile:
             "v_noload_mmps": int(round(self.v_noload_mps * 1000)),
             "acc_mmps2": int(round(self.accel_max_mps2 * 1000)),
             "dec_mmps2": int(round(self.beta_s_mps2 * 1000)),
+            "emergency_dec_mmps2": int(round(self.beta_e_mps2 * 1000)),
             "reaction_ms": int(round(self.reaction_s * 1000)),
+            "motor_tau_ms": int(round(self.motor_tau_s * 1000)),
         }
