@@ -2,13 +2,13 @@
 
 Made to be fair, not a straw man: the same trains, stops, safety margin and onboard supervision as moving block;
 only the authority differs. A train may run to the entry of the first occupied block ahead (its signal), less the
-safety margin; speed codes descend behind an occupied block as in seed 000 (three-aspect: the block just behind an
-occupied block gives code 0, stop at its end; the next one back gives the approach code; further back, line speed).
+safety margin; speed codes descend behind an occupied block as in seed 000 (the block just behind an occupied block gives the
+lowest code, restricted speed and a stop at its end; the next one back the approach code; further back line speed).
 Occupancy comes from track circuits, which detect any part of a train in a block: in simulation from the trains'
 true spans (`track_circuits`), otherwise from the estimates widened by k sigma.
 """
 
-from .authority import AuthorityParams, braking_curve_speed_mps
+from .authority import AuthorityParams
 from .layout import Block
 
 
@@ -23,11 +23,12 @@ def equal_blocks(length_m: float, count: int):
 class FixedBlockPolicy:
     name = "fixed_block"
 
-    def __init__(self, params: AuthorityParams = None, blocks=None, approach_fraction: float = 0.5,
+    def __init__(self, params: AuthorityParams = None, blocks=None, speed_codes=(0.5, 0.75, 1.0),
                  track_circuits=None):
         self.params = params or AuthorityParams()
         self._blocks = blocks              # None: the layout's own; int: that many equal blocks; or a tuple of Block
-        self.approach_fraction = approach_fraction
+        # fraction of line speed by clear blocks ahead: [0] = stop at this block's end, [1] = approach, [2+] = line
+        self.speed_codes = tuple(speed_codes)
         self.track_circuits = track_circuits  # callable() -> list of (train_id, head_s, tail_s) in truth, or None
 
     def blocks(self, layout):
@@ -77,38 +78,46 @@ class FixedBlockPolicy:
                 taken.add(i)
         return taken
 
-    def protected_m(self, layout, train_id, spans):
-        """True distance (m) from `train_id`'s head to the entry of the first truly occupied block ahead, less S_M."""
-        blocks = self.blocks(layout)
-        head = next(h for t, h, _ in spans if t == train_id)
-        taken = self._taken(layout, blocks, spans, train_id)
-        i = self._index_at(blocks, layout, head)
-        j = (i + 1) % len(blocks)
-        while j not in taken and j != i:
-            j = (j + 1) % len(blocks)
-        if j == i:
-            return float("inf")
-        return layout.ahead_m(head, blocks[j].start_m) - self.params.margin_m
-
     def authority(self, zc, state, leader, now_s):
         layout = zc.layout
         profile = state.setup.profile
         blocks = self.blocks(layout)
         own = state.estimator.estimate(state.report_t_s)
-        taken = self.occupied(zc, state.train_id)
-        i = self._index_at(blocks, layout, own.s_m)
-        clear_ahead = 0
-        j = (i + 1) % len(blocks)
+        spans = self._spans(zc)
+        clear_ahead, distance_m = self._clear_run(layout, blocks, spans, state.train_id, own.s_m)
+        distance_m -= self.params.margin_m + self.params.k_sigma * own.sigma_s_m
+        code_mps = self.speed_codes[min(clear_ahead, len(self.speed_codes) - 1)] * profile.v_max_mps
+        return distance_m, code_mps, profile.accel_max_mps2, profile.beta_s_mps2
+
+    def _clear_run(self, layout, blocks, spans, train_id, head_s):
+        """(clear blocks ahead, distance from the head to the first occupied block's entry) for a train at `head_s`.
+
+        A block is occupied if any part of another train is in it. If another train stands in the train's own block
+        ahead of it (only possible at start-up), the train must stay: (0, 0)."""
+        i = self._index_at(blocks, layout, head_s)
+        to_end_m = layout.ahead_m(head_s, blocks[i].end_m)
+        for other, _head, tail in spans:
+            if other != train_id and layout.ahead_m(head_s, tail) < to_end_m:
+                return 0, 0.0
+        taken = self._taken(layout, blocks, spans, train_id)
+        clear, j = 0, (i + 1) % len(blocks)
         while j not in taken and j != i:
-            clear_ahead += 1
+            clear += 1
             j = (j + 1) % len(blocks)
         if j == i:
-            distance_m = layout.length_m  # alone on the loop
-        else:
-            distance_m = layout.ahead_m(own.s_m, blocks[j].start_m) - self.params.margin_m \
-                - self.params.k_sigma * own.sigma_s_m
-        code_mps = profile.v_max_mps if clear_ahead >= 2 else \
-            (self.approach_fraction * profile.v_max_mps if clear_ahead == 1 else profile.v_max_mps)
-        dead_time_s = self.params.latency_s + profile.reaction_s + max(0.0, now_s - state.report_t_s)
-        v_cap_mps = min(code_mps, braking_curve_speed_mps(distance_m, own.v_mps, profile.beta_s_mps2, dead_time_s))
-        return distance_m, v_cap_mps, profile.accel_max_mps2, profile.beta_s_mps2
+            return len(blocks), layout.length_m  # alone on the loop
+        return clear, layout.ahead_m(head_s, blocks[j].start_m)
+
+    def protected_m(self, layout, train_id, spans):
+        """True distance (m) from `train_id`'s head to the entry of the first truly occupied block ahead (or to the
+        tail of a train in its own block), less S_M; negative = the protected zone is entered."""
+        head = next(h for t, h, _ in spans if t == train_id)
+        blocks = self.blocks(layout)
+        i = self._index_at(blocks, layout, head)
+        to_end_m = layout.ahead_m(head, blocks[i].end_m)
+        ahead = [layout.ahead_m(head, tail) for t, _h, tail in spans if t != train_id]
+        in_block = [d for d in ahead if d < to_end_m]
+        if in_block:
+            return min(in_block) - self.params.margin_m
+        clear, distance_m = self._clear_run(layout, blocks, spans, train_id, head)
+        return distance_m - self.params.margin_m

@@ -140,6 +140,7 @@ class Recorder:
         self.gap_m = [[] for _ in range(n)]       # true gap to the train ahead (head to its tail)
         self.est_s_m = [[] for _ in range(n)]
         self.est_sigma_m = [[] for _ in range(n)]
+        self.constrained = [[] for _ in range(n)]  # the train ahead limits this train's speed now
         self.collisions = [0] * n
         self.overruns = [0] * n
         self._colliding = [False] * n
@@ -179,6 +180,9 @@ class Recorder:
                 self._colliding[i] = inside
                 self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
             state = self.sim.zc.trains[train.train_id]
+            p = train.profile
+            reach_m = p.v_max_mps ** 2 / (2 * p.beta_s_mps2) + p.v_max_mps * p.reaction_s + 0.05
+            self.constrained[i].append(state.safe_m is not None and state.safe_m < reach_m)
             over = self.sim.policy.protected_m(layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i]:
                 self.overruns[i] += 1

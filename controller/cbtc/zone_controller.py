@@ -47,6 +47,7 @@ class TrainState:
         self.dwell_until_s = None
         self.dwells = 0
         self.limit_s = None          # current authority limit along the track (m), for supervision
+        self.safe_m = None           # distance the safety limit allowed at the last command (m)
         self.eoa_mm = None
         self.cmd_seq = 0
         self.reports_rejected = 0
@@ -197,6 +198,7 @@ class ZoneController:
         """Publish the command for `distance_m` (authority with the stop target folded in); `safe_m` is the safety
         limit alone (None: none granted), kept as `limit_s` on the track for supervision."""
         report = state.report
+        state.safe_m = safe_m
         if distance_m is None:
             # no picture of every train: stop now at service rate; the authority never extends
             v_mps = max(0.0, report["v_mmps"] / 1000.0)
