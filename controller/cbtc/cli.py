@@ -14,6 +14,8 @@ COMMANDS = (
     "demo",
     "sim",
     "layout",
+    "fusion",
+    "compare",
 )
 
 

@@ -33,6 +33,7 @@ class VirtualTrain:
         self._last_s = None
         self._now_s = 0.0
         self.frozen = False  # a dead board: no loop, no reports, motor state as it was
+        self.stopped_dead = False  # fault injection: the train stopped without braking (derailment, obstacle)
         client.subscribe(wire.topic_command(train_id), self._on_command)
         client.on_connect = self._on_connect
 
@@ -57,12 +58,18 @@ class VirtualTrain:
     def _on_connect(self, client):
         client.subscribe(wire.topic_command(self.train_id), self._on_command)
 
+    def stop_dead(self) -> None:
+        """Fault injection: the train stops at once where it is and stays (the brick-wall case)."""
+        self.stopped_dead = True
+        self.v_mps = 0.0
+        self.a_mps2 = 0.0
+
     def tick(self, now_s: float) -> None:
         """Advance physics to `now_s` under the motor command, then run one OnboardUnit loop."""
         dt_s = 0.0 if self._last_s is None else now_s - self._last_s
         self._last_s = now_s
         self._now_s = now_s
-        if dt_s > 0:
+        if dt_s > 0 and not self.stopped_dead:
             s_before = self.travelled_m
             self.travelled_m, self.v_mps, self.a_mps2 = physics.step(
                 self.travelled_m, self.v_mps, self.motor.duty_pct, self.motor.mode, dt_s, self.profile)

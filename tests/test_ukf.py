@@ -1,0 +1,347 @@
+"""The track-constrained UKF: a linear-KF oracle on a straight, NEES consistency, outlier gate, loop seam, late data.
+
+Streams are synthetic: the simulator's own sensor models (cbtc.sim_drivers) driven along a prescribed speed profile,
+packed into reports the way the OnboardUnit packs them (10 Hz, newest IPS fix, tag reads with their odometer).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from filterpy.kalman import KalmanFilter
+from scipy.stats import chi2
+
+from cbtc.errors import ConfigError
+from cbtc.estimate import BoardClock
+from cbtc.ips_frame import track_to_ips
+from cbtc.layout import load_layout
+from cbtc.sim_drivers import SimEncoder, SimIps, SimRfid
+from cbtc.track_ukf import NoiseModel, TrackUkf, along_track_residual, initial_covariance, process_noise
+from cbtc.train_profile import TrainProfile
+from cbtc.ukf_estimator import UkfEstimator
+
+BOARD_OFFSET_MS = 5_000_000     # the board's clock runs this far ahead of the controller's
+LINK_S = 0.0                    # report transit time: zero, so board stamps map exactly onto truth times
+LOOP_MS = 20
+
+
+def cruise_and_stop(t_s):
+    """Target speed (m/s): 8 s at 0.5 m/s, then 2 s standing, repeated."""
+    return 0.5 if t_s % 10.0 < 8.0 else 0.0
+
+
+def synthetic_run(layout, profile, seed, duration_s, s0_m=0.0, target=cruise_and_stop):
+    """(reports, truth): reports as the OnboardUnit sends them; truth rows (controller time s, unwrapped s m, v m/s)
+    at every 20 ms loop tick. Acceleration 0.5 m/s^2, braking 0.8 m/s^2."""
+    rng = np.random.default_rng(seed)
+    enc, ips, rfid = SimEncoder(profile, rng), SimIps(profile, layout, rng), SimRfid(profile, layout, rng)
+    travelled_m = v_mps = 0.0
+    truth, reports, ring = [], [], []
+    fix, tags = None, []
+    dt_s = LOOP_MS / 1000.0
+    for k in range(int(duration_s / dt_s) + 1):
+        t_s = k * dt_s
+        t_ms = BOARD_OFFSET_MS + k * LOOP_MS
+        v_mps += max(-0.8 * dt_s, min(0.5 * dt_s, target(t_s) - v_mps))
+        travelled_m += v_mps * dt_s
+        enc.advance(v_mps * dt_s)
+        s_m = float(layout.wrap(s0_m + travelled_m))
+        ips.sample(t_ms, s_m)
+        rfid.sense(s_m)
+        odo_mm = enc.count() * 1000 // profile.counts_per_m
+        ring.append((t_ms, odo_mm))
+        polled = ips.poll(t_ms)
+        if polled is not None:
+            fix = [polled[0], polled[1], polled[2]]
+        uid = rfid.poll(t_ms)
+        if uid is not None:
+            tags.append([uid, odo_mm, t_ms])
+        truth.append((t_s, s0_m + travelled_m, v_mps))
+        if k % 5 == 0:
+            old_ms, old_mm = ring[max(0, len(ring) - 6)]
+            v_mmps = (odo_mm - old_mm) * 1000 // (t_ms - old_ms) if t_ms > old_ms else 0
+            reports.append({"t_ms": t_ms, "odo_mm": odo_mm, "v_mmps": v_mmps, "ips": fix, "tags": tags})
+            fix, tags = None, []
+    return reports, np.array(truth)
+
+
+def controller_s(t_ms):
+    return (t_ms - BOARD_OFFSET_MS) / 1000.0
+
+
+def feed(estimator, reports, clock=None):
+    """Deliver reports in list order, each LINK_S after its sampling; returns the clock."""
+    clock = clock or BoardClock()
+    for report in reports:
+        clock.observe(report["t_ms"], controller_s(report["t_ms"]) + LINK_S)
+        estimator.on_report(report, clock)
+    return clock
+
+
+def along_error_m(layout, s_est_m, s_true_m):
+    return float(along_track_residual(layout)(np.array([s_est_m]), np.array([float(layout.wrap(s_true_m))]))[0])
+
+
+@pytest.fixture(scope="module")
+def loop():
+    return load_layout("itb_square")
+
+
+@pytest.fixture(scope="module")
+def straight():
+    return load_layout("straight_test")
+
+
+# --- the oracle: on a straight the IPS model is linear, so the UKF must be the Kalman filter ---------------------------
+
+def test_ukf_equals_linear_kalman_filter_on_a_straight(straight):
+    noise = NoiseModel(accel_psd_m2ps3=0.3, slip_var_m2_per_m=2e-6, scale_var_per_m=0.0, odo_var_m2=1e-7,
+                       ips_var_m2=0.05 ** 2, tag_var_m2=4e-6, rfid_range_m=0.015, rfid_poll_s=0.02, gate_prob=0.999999)
+    x0 = np.array([1.0, 0.3, 0.0])
+    P0 = initial_covariance(3, 0.05, 0.1, 0.002, 0.0)
+    ukf = TrackUkf(straight, noise, x0, P0, t_s=0.0)
+    p0 = np.array([float(c) for c in straight.xy(0.0)])
+    u = np.array([float(c) for c in straight.xy(1.0)]) - p0      # unit direction of the straight
+    kf = KalmanFilter(dim_x=3, dim_z=1)
+    kf.x, kf.P = x0.copy(), P0.copy()
+    rng = np.random.default_rng(7)
+    t_s, s_true, v_true, d_true = 0.0, 1.0, 0.3, 0.0
+    for step in range(60):
+        dt_s = float(rng.uniform(0.02, 0.15))       # irregular, as measurements arrive
+        t_s += dt_s
+        s_true += v_true * dt_s
+        d_true += v_true * dt_s
+        kf.F = np.array([[1.0, dt_s, 0.0], [0.0, 1.0, 0.0], [0.0, dt_s, 1.0]])
+        kf.Q = process_noise(3, dt_s, kf.x[1], 0.0, noise)
+        kf.predict()
+        ukf.predict_to(t_s)
+        if step % 3 == 2:
+            z = p0 + u * s_true + rng.normal(0.0, 0.05, 2)
+            H = np.array([[u[0], 0.0, 0.0], [u[1], 0.0, 0.0]])
+            kf.update(z - p0, R=np.eye(2) * noise.ips_var_m2, H=H)
+            assert ukf.update_ips(*z)
+        else:
+            d = d_true + rng.normal(0.0, 3e-4)
+            kf.update(np.array([d]), R=np.array([[noise.odo_var_m2]]), H=np.array([[0.0, 0.0, 1.0]]))
+            assert ukf.update_odometer(d)
+        np.testing.assert_allclose(ukf.x, kf.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ukf.P, kf.P, rtol=0, atol=1e-12)
+    assert abs(ukf.x[0] - s_true) < 0.02
+
+
+# --- consistency ---------------------------------------------------------------------------------------------------------
+
+def test_nees_within_chi_square_bounds(loop):
+    """Monte-Carlo NEES of the along-track position over 6 seeded runs: at each report time the run-averaged NEES lies
+    inside the 99 % chi-square(6)/6 interval nearly always, and its time average is close to 1 (1 degree of freedom)."""
+    profile = TrainProfile()
+    runs = 6
+    nees = []
+    for seed in range(runs):
+        reports, truth = synthetic_run(loop, profile, seed, duration_s=40.0, s0_m=0.3 * seed)
+        est = UkfEstimator(loop, profile)
+        clock = BoardClock()
+        row = []
+        for report in reports:
+            feed(est, [report], clock)
+            t_s = controller_s(report["t_ms"])
+            if t_s < 5.0:
+                continue   # settled
+            e = est.estimate(t_s)
+            err = along_error_m(loop, e.s_m, truth[round(t_s * 1000) // LOOP_MS, 1])
+            row.append(err ** 2 / e.sigma_s_m ** 2)
+        nees.append(row)
+    mean_over_runs = np.mean(np.array(nees), axis=0)
+    low, high = chi2.ppf(0.005, runs) / runs, chi2.ppf(0.995, runs) / runs
+    inside = np.mean((mean_over_runs > low) & (mean_over_runs < high))
+    assert inside >= 0.9, f"only {inside:.2f} of the times are inside [{low:.2f}, {high:.2f}]"
+    assert 0.5 < float(np.mean(mean_over_runs)) < 1.5
+
+
+def test_scale_error_is_learnt_and_encoder_alone_keeps_going(loop):
+    profile = TrainProfile()   # its wheel reads 2 % long; the filter starts from 0 +- 3 %
+    reports, truth = synthetic_run(loop, profile, seed=3, duration_s=60.0)
+    est = UkfEstimator(loop, profile)
+    feed(est, reports[:400])
+    k = est._newest.snap[1][3]
+    assert abs(k - profile.encoder_scale_error) < 0.004
+    # IPS and RFID lost for the last 20 s: the learnt scale keeps the error near the pure slip walk
+    blind = [dict(r, ips=None, tags=[]) for r in reports[400:]]
+    feed(est, blind)
+    t_s = controller_s(reports[-1]["t_ms"])
+    e = est.estimate(t_s)
+    err = along_error_m(loop, e.s_m, truth[-1, 1])
+    assert abs(err) < 0.03
+    assert abs(err) < 3.0 * e.sigma_s_m
+
+
+# --- robustness ----------------------------------------------------------------------------------------------------------
+
+def test_ips_outlier_of_one_metre_moves_the_estimate_less_than_a_centimetre(loop):
+    profile = TrainProfile().with_changes(ips_outlier=0.0)
+    reports, _truth = synthetic_run(loop, profile, seed=5, duration_s=20.0)
+    i = next(i for i in range(150, 200) if reports[i]["ips"] is not None)
+    bad = [dict(r) for r in reports]
+    fix_t_ms, x_mm, y_mm = bad[i]["ips"]
+    bad[i]["ips"] = [fix_t_ms, x_mm + 600, y_mm + 800]     # 1 m off
+    clean, spoiled = UkfEstimator(loop, profile), UkfEstimator(loop, profile)
+    feed(clean, reports[:i + 1])
+    feed(spoiled, bad[:i + 1])
+    t_s = controller_s(reports[i]["t_ms"])
+    assert abs(along_error_m(loop, spoiled.estimate(t_s).s_m, clean.estimate(t_s).s_m)) < 0.01
+    assert spoiled.rejected_ips == clean.rejected_ips + 1
+
+
+def test_unknown_tag_is_counted_and_ignored(loop):
+    profile = TrainProfile()
+    reports, _truth = synthetic_run(loop, profile, seed=6, duration_s=10.0)
+    odd = [dict(r) for r in reports]
+    odd[60] = dict(odd[60], tags=odd[60]["tags"] + [["deadbeef", odd[60]["odo_mm"], odd[60]["t_ms"]]])
+    a, b = UkfEstimator(loop, profile), UkfEstimator(loop, profile)
+    feed(a, reports)
+    feed(b, odd)
+    t_s = controller_s(reports[-1]["t_ms"])
+    assert b.unknown_tags == 1 and a.unknown_tags == 0
+    assert a.estimate(t_s).s_m == b.estimate(t_s).s_m
+
+
+def test_crossing_the_loop_seam_gives_no_jump(loop):
+    profile = TrainProfile()
+    reports, truth = synthetic_run(loop, profile, seed=8, duration_s=16.0, s0_m=loop.length_m - 3.0,
+                                   target=lambda t_s: 0.5)
+    est = UkfEstimator(loop, profile)
+    clock = BoardClock()
+    previous = None
+    crossed = False
+    for report in reports:
+        feed(est, [report], clock)
+        t_s = controller_s(report["t_ms"])
+        if t_s < 3.0:
+            continue
+        e = est.estimate(t_s)
+        true_s = truth[round(t_s * 1000) // LOOP_MS, 1]
+        assert abs(along_error_m(loop, e.s_m, true_s)) < 0.02
+        assert 0.0 <= e.s_m < loop.length_m
+        if previous is not None:
+            step_m = along_error_m(loop, e.s_m, previous)
+            assert -0.005 < step_m < 0.5 * 0.1 + 0.01        # at most v * 100 ms forward, never a lap
+            crossed = crossed or e.s_m < previous
+        previous = e.s_m
+    assert crossed
+
+
+def test_dropout_predicts_and_uncertainty_grows(loop):
+    profile = TrainProfile()
+    reports, truth = synthetic_run(loop, profile, seed=9, duration_s=30.0, target=lambda t_s: 0.4)
+    est = UkfEstimator(loop, profile)
+    feed(est, reports[:200])
+    t_s = controller_s(reports[199]["t_ms"])
+    before = est.estimate(t_s)
+    later = est.estimate(t_s + 1.0)      # no report for a second: prediction only
+    assert later.sigma_s_m > before.sigma_s_m
+    assert abs(along_error_m(loop, later.s_m, before.s_m) - before.v_mps * 1.0) < 1e-9
+    assert later.age_s == pytest.approx(1.0 + before.age_s)
+    err = along_error_m(loop, later.s_m, truth[round((t_s + 1.0) * 1000) // LOOP_MS, 1])
+    assert abs(err) < 3.0 * later.sigma_s_m
+
+
+def test_train_moved_by_hand_is_found_again(loop):
+    """A train lifted and set down 1.2 m further on: every fix fails the gate until the filter restarts from them."""
+    profile = TrainProfile().with_changes(ips_outlier=0.0, rfid_miss=0.0)
+    reports, truth = synthetic_run(loop, profile, seed=10, duration_s=30.0, target=lambda t_s: 0.3)
+    est = UkfEstimator(loop, profile)
+    feed(est, reports[:150])
+    moved = []
+    for r in reports[150:]:
+        r = dict(r, tags=[])
+        if r["ips"] is not None:
+            t_ms, x_mm, y_mm = r["ips"]
+            s_true = truth[round(controller_s(t_ms - 60) * 1000) // LOOP_MS, 1] + 1.2
+            x, y = (float(c) for c in loop.xy(s_true))
+            xi, yi = track_to_ips(x, y, loop.ips)
+            r["ips"] = [t_ms, int(round(xi * 1000)), int(round(yi * 1000))]
+        moved.append(r)
+    feed(est, moved)
+    t_s = controller_s(reports[-1]["t_ms"])
+    assert est.relocations == 1
+    assert abs(along_error_m(loop, est.estimate(t_s).s_m, truth[-1, 1] + 1.2)) < 0.03
+
+
+# --- time: late and reordered data ---------------------------------------------------------------------------------------
+
+def test_late_ips_fix_is_applied_at_its_own_time(loop):
+    profile = TrainProfile().with_changes(ips_outlier=0.0)
+    reports, _truth = synthetic_run(loop, profile, seed=11, duration_s=20.0)
+    j = next(j for j in range(12, 40) if reports[j]["ips"] is not None)   # soon after localisation
+    in_time = [dict(r) for r in reports[:j + 6]]
+    late = [dict(r) for r in reports[:j + 6]]
+    fix = reports[j]["ips"]
+    in_time[j + 4]["ips"] = None
+    late[j]["ips"] = None
+    late[j + 4]["ips"] = fix                 # the same fix, 400 ms late, still stamped with its own time
+    stamped_late = [dict(r) for r in late]
+    stamped_late[j + 4]["ips"] = [reports[j + 4]["t_ms"], fix[1], fix[2]]   # what ignoring its stamp would do
+    without = [dict(r) for r in late]
+    without[j + 4]["ips"] = None
+    a, b, c, d = (UkfEstimator(loop, profile) for _ in range(4))
+    feed(a, in_time)
+    feed(b, late)
+    feed(c, stamped_late)
+    feed(d, without)
+    t_s = controller_s(reports[j + 5]["t_ms"])
+    ea, eb, ed = a.estimate(t_s), b.estimate(t_s), d.estimate(t_s)
+    assert abs(ea.s_m - eb.s_m) < 1e-9 and abs(ea.sigma_s_m - eb.sigma_s_m) < 1e-12
+    assert ea.sigma_s_m < ed.sigma_s_m and b.rejected_ips == d.rejected_ips     # the late fix was used
+    assert c.rejected_ips == b.rejected_ips + 1     # taken at its arrival it would sit 0.2 m off: gated out
+
+
+def test_reports_out_of_order_give_the_same_estimate(loop):
+    profile = TrainProfile()
+    reports, _truth = synthetic_run(loop, profile, seed=12, duration_s=20.0)
+    shuffled = list(reports[:150])
+    shuffled[100], shuffled[101] = shuffled[101], shuffled[100]
+    shuffled[120], shuffled[123] = shuffled[123], shuffled[120]
+    a, b = UkfEstimator(loop, profile), UkfEstimator(loop, profile)
+    feed(a, reports[:150])
+    feed(b, shuffled)
+    t_s = controller_s(reports[149]["t_ms"])
+    assert abs(a.estimate(t_s).s_m - b.estimate(t_s).s_m) < 1e-9
+
+
+def test_measurement_older_than_the_history_is_dropped(loop):
+    profile = TrainProfile()
+    reports, _truth = synthetic_run(loop, profile, seed=13, duration_s=12.0)
+    est = UkfEstimator(loop, profile, history_s=1.0)
+    feed(est, reports[50:100])
+    t_s = controller_s(reports[99]["t_ms"])
+    before = est.estimate(t_s)
+    feed(est, [reports[10]])
+    assert est.late_measurements >= 1
+    assert est.estimate(t_s) == before
+
+
+# --- interface -----------------------------------------------------------------------------------------------------------
+
+def test_not_localized_until_a_fix_or_a_tag(loop):
+    profile = TrainProfile()
+    reports, _truth = synthetic_run(loop, profile, seed=14, duration_s=3.0)
+    est = UkfEstimator(loop, profile)
+    feed(est, [dict(r, ips=None, tags=[]) for r in reports])
+    assert not est.localized and est.estimate(1.0) is None
+    with_fix = next(r for r in reports if r["ips"] is not None)
+    feed(est, [dict(with_fix, t_ms=reports[-1]["t_ms"] + 100, ips=[reports[-1]["t_ms"] + 100] + with_fix["ips"][1:])])
+    assert est.localized and est.name == "ukf"
+
+
+def test_unknown_setting_is_a_config_error(loop):
+    with pytest.raises(ConfigError, match="accel_psd_m2ps3"):
+        UkfEstimator(loop, TrainProfile(), accel_psd=1.0)
+    with pytest.raises(ConfigError, match="gate_prob"):
+        UkfEstimator(loop, TrainProfile(), gate_prob=1.5)
+
+
+def test_seam_residual_takes_the_short_way(loop):
+    residual = along_track_residual(loop)
+    y = residual(np.array([0.01, 5.0]), np.array([loop.length_m - 0.01, 4.0]))
+    assert y[0] == pytest.approx(0.02) and y[1] == pytest.approx(1.0)
+    assert math.isclose(residual(np.array([loop.length_m - 0.01]), np.array([0.01]))[0], -0.02, abs_tol=1e-12)
