@@ -5,7 +5,7 @@ from ..layout import load_layout
 from ..plots import distance_time_png
 from .common import format_table, print_json
 
-COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap moving m"),
+COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
            ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("trains_per_hour", "trains/h"),
            ("collisions", "collisions"), ("authority_overruns", "overruns")]
 
