@@ -5,6 +5,7 @@ Adding a command is adding a module and one name to COMMANDS.
 """
 
 import argparse
+import logging
 import importlib
 import sys
 
@@ -32,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    logging.basicConfig(level=logging.WARNING, format="%(name)s: %(levelname)s: %(message)s")
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

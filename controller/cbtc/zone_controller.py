@@ -159,7 +159,7 @@ class ZoneController:
             return distance_m
         est = state.estimator.estimate(state.report_t_s)
         if state.next_stop is None:
-            state.next_stop = self._next_station(est.s_m, stops, behind_ok_m=0.05)
+            state.next_stop = self._next_station(est.s_m, stops, at_station_ok=True)
         station = self.layout.station(state.next_stop)
         to_stop_m = self._signed_ahead(est.s_m, station.s_m)
         standing = state.report["v_mmps"] == 0
@@ -167,7 +167,7 @@ class ZoneController:
             if now_s >= state.dwell_until_s:
                 state.dwell_until_s = None
                 state.dwells += 1
-                state.next_stop = self._next_station(station.s_m + 0.01, stops, behind_ok_m=0.0)
+                state.next_stop = self._next_station(station.s_m + 0.01, stops)
                 return distance_m
             return min(distance_m, to_stop_m)
         if standing and abs(to_stop_m) <= station.window_m:
@@ -178,7 +178,7 @@ class ZoneController:
             # passed the stop point beyond its window: count it and move on rather than reverse
             state.stop_overruns += 1
             log.warning("train %s overran station %s by %.3f m", state.train_id, station.name, -to_stop_m)
-            state.next_stop = self._next_station(station.s_m + 0.01, stops, behind_ok_m=0.0)
+            state.next_stop = self._next_station(station.s_m + 0.01, stops)
             return distance_m
         return min(distance_m, to_stop_m)
 
@@ -189,10 +189,15 @@ class ZoneController:
             ahead -= self.layout.length_m
         return ahead
 
-    def _next_station(self, s_m, stops, behind_ok_m):
-        """The first station in `stops` at or ahead of `s_m - behind_ok_m` along the track."""
-        origin = self.layout.wrap(s_m - behind_ok_m)
-        return min(stops, key=lambda name: self.layout.ahead_m(origin, self.layout.station(name).s_m))
+    def _next_station(self, s_m, stops, at_station_ok=False):
+        """The first station in `stops` ahead of `s_m` along the track; with `at_station_ok`, a station whose stop
+        window holds `s_m` (a train that starts at a platform dwells there first)."""
+        def distance(name):
+            station = self.layout.station(name)
+            if at_station_ok and abs(self._signed_ahead(s_m, station.s_m)) <= station.window_m:
+                return 0.0
+            return self.layout.ahead_m(s_m, station.s_m)
+        return min(stops, key=distance)
 
     def _command(self, state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
         """Publish the command for `distance_m` (authority with the stop target folded in); `safe_m` is the safety
