@@ -19,8 +19,8 @@ def fusion_png(layout, traces, train_id, path, title):
     """Left: the track (truth lies on it) with each method's positions; right: |along-track error| over time (log)."""
     fig, (plane, errors) = plt.subplots(1, 2, figsize=(13, 5.5))
     s = np.linspace(0.0, layout.length_m, 2000, endpoint=not layout.closed)
-    tx, ty = layout.xy(s)
-    plane.plot(tx, ty, color="0.6", lw=4, alpha=0.5, label="track (truth lies on it)")
+    track = layout.xy(s)
+    plane.plot(track[:, 0], track[:, 1], color="0.6", lw=4, alpha=0.5, label="track (truth lies on it)")
     for key, (label, style) in _STYLE.items():
         trace = traces[train_id][key]
         plane.plot(trace.x_m, trace.y_m, label=label, **style)

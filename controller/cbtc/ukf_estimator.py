@@ -20,14 +20,14 @@ from dataclasses import dataclass, fields
 from .errors import ConfigError
 from .estimate import Estimate
 from .ips_frame import ips_to_track
-from .track_ukf import S, V, NoiseModel, TrackUkf, initial_covariance
+from .track_ukf import K, S, V, NoiseModel, TrackUkf, initial_covariance
 
 
 @dataclass(frozen=True)
 class UkfParams:
     """Filter settings that are not sensor properties (those come from the TrainProfile); see docs/fusion.md."""
 
-    accel_psd_m2ps3: float = 0.5      # white-acceleration PSD: LEGO trains change acceleration by ~1 m/s^2 in ~0.25 s
+    accel_psd_m2ps3: float = 0.02     # white-acceleration PSD: ~0.3 m/s^2 changes of acceleration per motor time constant
     scale_sigma: float = 0.03         # prior 1-sigma of the encoder scale error; 0 leaves it out of the state
     scale_walk_per_sqrt_m: float = 1e-3  # scale error drift per sqrt(metre) travelled (wear, dirt, load)
     slip_length_m: float = 0.02       # distance over which wheel slip is correlated (a wheel's roll per loop tick)
@@ -72,17 +72,20 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
     )
 
 
-class _Event:
-    __slots__ = ("t_s", "order", "kind", "data")
+_KIND_RANK = {"odo": 0, "tag": 1, "ips": 2}
 
-    def __init__(self, t_s, order, kind, data):
+
+class _Event:
+    """One measurement at board time `t_s`. Events sort by time, then kind and value, never by arrival, so the same
+    measurements give the same filter whatever order they came in."""
+
+    __slots__ = ("t_s", "kind", "data", "sort_key")
+
+    def __init__(self, t_s, kind, data):
         self.t_s = t_s
-        self.order = order
         self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m)
         self.data = data
-
-    def key(self):
-        return (self.t_s, self.order)
+        self.sort_key = (t_s, _KIND_RANK[kind], data)
 
 
 class _State:
@@ -119,7 +122,6 @@ class UkfEstimator:
         self._events = []            # in time order
         self._states = []            # _states[i]: after _events[i]; None while unlocated
         self._base = None            # state before _events[0]
-        self._order = 0
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
 
@@ -131,15 +133,23 @@ class UkfEstimator:
 
     @property
     def rejected_ips(self):
+        """IPS fixes the gate turned away, among those the current state rests on."""
         return self._newest.ips_rejected if self._newest else 0
 
     @property
-    def rejected_tags(self):
-        return self._newest.tags_rejected if self._newest else 0
+    def scale_error(self):
+        """The encoder scale error learnt so far (None while unlocated or when it is not estimated)."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K:
+            return None
+        return float(state.snap[1][K])
 
-    @property
-    def relocations(self):
-        return self._newest.relocations if self._newest else 0
+    def counters(self) -> dict:
+        """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""
+        state = self._newest or _State(None)
+        return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
+                "tags_rejected": state.tags_rejected, "relocations": state.relocations,
+                "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements}
 
     # --- input ---------------------------------------------------------------------------------------------------------
 
@@ -147,32 +157,28 @@ class UkfEstimator:
         """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
         self._clock = board_clock
         t_s = report["t_ms"] / 1000.0
-        new = [self._event(t_s, "odo", (report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0))]
+        new = [_Event(t_s, "odo", (report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0))]
         for uid, tag_odo_mm, tag_t_ms in report["tags"]:
             tag = self.layout.tag_by_uid(uid)
             if tag is None:
                 self.unknown_tags += 1
                 continue
-            new.append(self._event(tag_t_ms / 1000.0, "tag", (tag.s_m, tag_odo_mm / 1000.0)))
+            new.append(_Event(tag_t_ms / 1000.0, "tag", (tag.s_m, tag_odo_mm / 1000.0)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
-            new.append(self._event(fix_t_ms / 1000.0 - self.profile.ips_latency_s, "ips", (x_m, y_m)))
+            new.append(_Event(fix_t_ms / 1000.0 - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
 
-    def _event(self, t_s, kind, data):
-        self._order += 1
-        return _Event(t_s, self._order, kind, data)
-
     def _insert(self, new):
-        keys = [e.key() for e in self._events]
+        keys = [e.sort_key for e in self._events]
         start = len(self._events)
-        for event in sorted(new, key=_Event.key):
+        for event in sorted(new, key=lambda e: e.sort_key):
             if self._trimmed and event.t_s < self._events[0].t_s:
                 self.late_measurements += 1
                 continue
-            index = bisect.bisect_right(keys, event.key())
-            keys.insert(index, event.key())
+            index = bisect.bisect_right(keys, event.sort_key)
+            keys.insert(index, event.sort_key)
             self._events.insert(index, event)
             self._states.insert(index, None)
             start = min(start, index)
@@ -292,5 +298,6 @@ class UkfEstimator:
         adt = abs(dt_s)
         var_s = P[S, S] + 2.0 * dt_s * P[S, V] + dt_s * dt_s * P[V, V] + q * adt ** 3 / 3.0
         var_v = P[V, V] + q * adt
-        return Estimate(s_m=self.layout.wrap(x[S] + x[V] * dt_s), v_mps=float(x[V]), sigma_s_m=math.sqrt(max(var_s, 0.0)),
-                        sigma_v_mps=math.sqrt(var_v), t_s=now_s, data_t_s=self._events[-1].t_s + offset_s)
+        return Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
+                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
+                        data_t_s=self._events[-1].t_s + offset_s)
