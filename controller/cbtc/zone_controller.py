@@ -54,10 +54,20 @@ class TrainState:
         self.last_reject = ""
         self.stop_overruns = 0
         self.departure = None        # set by the policy during departure control
+        self.restarts = 0
 
     @property
     def train_id(self):
         return self.setup.train_id
+
+    def restart(self, estimator):
+        """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
+        self.estimator = estimator
+        self.clock = BoardClock()
+        self.report = None
+        self.eoa_mm = None
+        self.limit_s = None
+        self.restarts += 1
 
 
 class ZoneController:
@@ -76,6 +86,7 @@ class ZoneController:
         self.session_id = self._rng.randrange(1, 2 ** 31 - 1)
         if estimator_factory is None:
             from .ukf_estimator import UkfEstimator as estimator_factory
+        self._estimator_factory = estimator_factory
         self.trains = {}
         for setup in trains:
             wire.check_train_id(setup.train_id)
@@ -122,6 +133,11 @@ class ZoneController:
             state.last_reject = f"report seq {report['seq']} not after {state.last_report_seq} (replayed or reordered)"
             log.warning("dropped report of train %s: %s", train_id, state.last_reject)
             return
+        if report["seq"] <= state.last_report_seq:
+            # accepted after a silence with a lower seq: the board restarted; its clock and odometer began again
+            log.warning("train %s restarted (report seq %d after %d): locating it afresh", train_id, report["seq"],
+                        state.last_report_seq)
+            state.restart(self._estimator_factory(self.layout, state.setup.profile))
         state.last_report_seq = report["seq"]
         state.clock.observe(report["t_ms"], recv_s)
         state.estimator.on_report(report, state.clock)
