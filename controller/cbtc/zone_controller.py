@@ -72,7 +72,8 @@ class TrainState:
 
 class ZoneController:
     def __init__(self, layout, trains, client, now_fn, policy, params: AuthorityParams = None,
-                 estimator_factory=None, cycle_s: float = 0.1, zone_id: str = "zc1", seed: int = 0):
+                 estimator_factory=None, cycle_s: float = 0.1, zone_id: str = "zc1", seed: int = 0,
+                 event_driven: bool = True):
         if not trains:
             raise ValueError("zone controller: no trains configured")
         self.layout = layout
@@ -81,6 +82,7 @@ class ZoneController:
         self.policy = policy
         self.params = params or AuthorityParams()
         self.cycle_s = cycle_s
+        self.event_driven = event_driven
         self.zone_id = zone_id
         self._rng = random.Random(seed)
         self.session_id = self._rng.randrange(1, 2 ** 31 - 1)
@@ -144,6 +146,8 @@ class ZoneController:
         state.report = report
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+        if self.event_driven and state.estimator.localized:
+            self._answer_follower(state, recv_s)
 
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
@@ -159,14 +163,26 @@ class ZoneController:
         all_located = len(located) == len(self.trains)
         for i, state in enumerate(located):
             leader = located[(i + 1) % len(located)] if len(located) > 1 else None
-            if all_located:
-                safe_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
-                distance_m = self._station_stop(state, safe_m, now_s)
-            else:
-                safe_m = distance_m = None
-                v_cap_mps = 0.0
-                acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
-            self._command(state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+            self._update(state, leader, all_located, now_s)
+
+    def _update(self, state, leader, all_located, now_s):
+        if all_located:
+            safe_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
+            distance_m = self._station_stop(state, safe_m, now_s)
+        else:
+            safe_m = distance_m = None
+            v_cap_mps = 0.0
+            acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
+        self._command(state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+
+    def _answer_follower(self, leader_state, now_s):
+        """Event-driven: fresh data of a train extends its follower's authority at once, not at the next cycle."""
+        located = self.located()
+        if len(located) != len(self.trains) or len(located) < 2:
+            return
+        i = located.index(leader_state)
+        follower = located[i - 1]
+        self._update(follower, leader_state, True, now_s)
 
     def _station_stop(self, state, distance_m, now_s):
         """Fold the next scheduled stop into the authority; run the dwell clock."""
