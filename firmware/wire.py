@@ -42,7 +42,7 @@ class WireError(ValueError):
     """A message that must be ignored; `reason` says why in words a log reader can act on."""
 
     def __init__(self, reason):
-        ValueError.__init__(self, reason)
+        super().__init__(reason)
         self.reason = reason
 
 

