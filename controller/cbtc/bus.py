@@ -10,9 +10,37 @@ broker through paho-mqtt). A client object has:
     subscribe(topic_filter, callback)        callback(topic: str, payload: bytes)
     unsubscribe(topic_filter)
     disconnect()                             clean: no last will
+
+`BusClient` states this as a Protocol, so `isinstance(client, BusClient)` checks an implementation.
 """
 
+from typing import Callable, Optional, Protocol, runtime_checkable
+
 MAX_TOPIC_BYTES = 65535
+
+
+@runtime_checkable
+class BusClient(Protocol):
+    """What the zone controller and the trains need from a bus connection."""
+
+    client_id: str
+    on_connect: Optional[Callable]
+
+    @property
+    def connected(self) -> bool:
+        """True while the connection to the broker is up."""
+
+    def publish(self, topic: str, payload: bytes, retain: bool = False, qos: int = 0) -> None:
+        """Send `payload` on `topic` (no wildcards); a retained empty payload deletes the retained message."""
+
+    def subscribe(self, topic_filter: str, callback: Callable[[str, bytes], None]) -> None:
+        """Call `callback(topic, payload)` for each message matching `topic_filter` (until the connection is lost)."""
+
+    def unsubscribe(self, topic_filter: str) -> None:
+        """Stop the callbacks of `topic_filter`."""
+
+    def disconnect(self) -> None:
+        """Clean disconnect: the last will is not published."""
 
 
 def validate_topic(topic: str) -> str:
@@ -43,7 +71,7 @@ def _common(text, what):
     if "\x00" in text:
         raise ValueError(f"{what} {text!r} contains a NUL character")
     if len(text.encode("utf-8")) > MAX_TOPIC_BYTES:
-        raise ValueError(f"{what} is longer than {MAX_TOPIC_BYTES} bytes")
+        raise ValueError(f"{what} {text[:40]!r}... is longer than {MAX_TOPIC_BYTES} bytes UTF-8: shorten it")
 
 
 def topic_matches(topic_filter: str, topic: str) -> bool:
