@@ -9,6 +9,11 @@ authority is a value of the train's own odometer, so it holds between commands);
 braking curve to that end; run the speed PI loop to a motor duty; report at a fixed rate. When the newest valid command
 has expired, the target speed is zero: the train brakes to a stop and stays braked. If the speed ever exceeds the
 braking curve by a margin, the unit trips: motor brake until standstill.
+
+Collision guard (optional `ranging` driver, `poll(now_ms) -> gap_mm | None`: the coded train-to-train ranging to the
+train ahead): whenever a fresh measured gap is shorter than the emergency braking distance at the current speed plus
+the reaction distance plus `guard_margin_mm`, the unit brakes (mode "trip"), whatever its commands say, and reports
+the "guard" fault while that holds. It is independent of the zone controller's picture of the trains.
 """
 
 from math import sqrt
@@ -33,6 +38,8 @@ DEFAULTS = {
     "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
     "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
     "stop_window_mm": 10,     # this close to the end of authority the train brakes to standstill and holds (mm)
+    "guard_margin_mm": 100,   # collision guard: measured gap kept beyond the emergency braking distance (mm)
+    "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
 }
 
 _HISTORY = 12          # reports remembered for matching commands to the report they are based on
@@ -40,13 +47,14 @@ _SPEED_RING = 8        # encoder snapshots kept for the speed estimate
 
 
 class OnboardUnit:
-    def __init__(self, train_id, key, encoder, ips, rfid, motor, publish, config=None):
+    def __init__(self, train_id, key, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
         self._key = key
         self.encoder = encoder
         self.ips = ips
         self.rfid = rfid
         self.motor = motor
+        self.ranging = ranging
         self._publish = publish
         cfg = dict(DEFAULTS)
         if config:
@@ -92,6 +100,12 @@ class OnboardUnit:
         self.sensor_errors = 0
         self.last_sensor_error = ""
         self.link_ok = True
+        # collision guard
+        self.gap_mm = None            # newest measured gap to the train ahead (mm) and its board time (ms)
+        self.gap_t_ms = 0
+        self._rng_report = None
+        self.guard_on = False
+        self.guard_trips = 0
 
     # --- commands ------------------------------------------------------------------------------------------
 
@@ -163,6 +177,15 @@ class OnboardUnit:
                 self._tags.append([uid, self.odo_mm, now_ms])
         except Exception as exc:
             self._sensor_failed("rfid", exc)
+        if self.ranging is not None:
+            try:
+                gap = self.ranging.poll(now_ms)
+                if gap is not None:
+                    self.gap_mm = int(gap)
+                    self.gap_t_ms = now_ms
+                    self._rng_report = [now_ms, self.gap_mm]
+            except Exception as exc:
+                self._sensor_failed("ranging", exc)
 
     def _update_speed(self, now_ms):
         i = self._ring_i
@@ -190,8 +213,29 @@ class OnboardUnit:
             return 0.0
         return sqrt(2.0 * dec_mmps2 * dist_mm)
 
+    def guard_limit_mm(self):
+        """Shortest measured gap (mm) the guard accepts at the current speed: emergency braking distance, reaction
+        distance and the guard margin."""
+        cfg = self.cfg
+        v = max(0, self.v_mmps)
+        return v * v / (2.0 * cfg["emergency_dec_mmps2"]) + v * cfg["reaction_ms"] / 1000.0 + cfg["guard_margin_mm"]
+
+    def guard_tripped(self, now_ms):
+        """True when a fresh measured gap is below `guard_limit_mm`."""
+        if self.gap_mm is None or now_ms - self.gap_t_ms > self.cfg["guard_fresh_ms"]:
+            return False
+        return self.gap_mm < self.guard_limit_mm()
+
     def _control(self, now_ms, dt_s):
         cfg = self.cfg
+        if self.guard_tripped(now_ms):
+            if not self.guard_on:
+                self.guard_trips += 1
+            self.guard_on = True
+            self.mode = "trip"
+            self._brake()
+            return
+        self.guard_on = False
         if self.command_valid(now_ms):
             cmd = self.cmd
             v_cap = min(cmd["v_mmps"], cfg["v_max_mmps"])
@@ -259,6 +303,8 @@ class OnboardUnit:
             faults.append("cmd_reject")
         if not self.link_ok:
             faults.append("broker_lost")
+        if self.guard_on:
+            faults.append("guard")
         return faults
 
     def _report(self, now_ms):
@@ -269,9 +315,10 @@ class OnboardUnit:
         self._sent_t[slot] = now_ms
         self._sent_odo[slot] = self.odo_mm
         payload = wire.encode_report(self._key, self.train_id, seq, now_ms, self.odo_mm, self.v_mmps, self.duty_pct,
-                                     self.mode, self.cseq, self._ips_fix, self._tags, self.faults)
+                                     self.mode, self.cseq, self._ips_fix, self._tags, self.faults, self._rng_report)
         self.seq = seq + 1
         self._ips_fix = None
+        self._rng_report = None
         self._tags = []
         self._rejected_since_report = False
         try:

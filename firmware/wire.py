@@ -35,7 +35,8 @@ KIND_REPORT = "rep"
 KIND_COMMAND = "cmd"
 
 MODES = ("idle", "run", "stop", "trip")
-FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "cmd_timeout", "cmd_reject", "broker_lost")
+FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "cmd_timeout", "cmd_reject", "broker_lost",
+          "guard")
 
 
 class WireError(ValueError):
@@ -170,16 +171,20 @@ def _dump(msg):
 
 # --- reports ---------------------------------------------------------------------------------------------------
 
-def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, ips, tags, faults):
+def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, ips, tags, faults, rng=None):
     """Sealed report payload.
 
     t_ms: board uptime (ms) when sampled; odo_mm: encoder odometer (mm); v_mmps: encoder speed (mm/s);
     duty_pct: motor duty (%); mode: one of MODES; cseq: seq of the last accepted command (-1 if none);
     ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report, stamped on the board's clock);
-    tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from FAULTS.
+    tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from FAULTS;
+    rng: None or [t_ms, gap_mm], the newest gap to the train ahead measured by the onboard ranging since the last
+    report (board clock; gap from this head to the leader's tail, mm).
     """
     msg = {"v": VERSION, "k": KIND_REPORT, "id": train_id, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
            "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "ips": ips, "tags": tags, "flt": faults}
+    if rng is not None:
+        msg["rng"] = rng   # absent (read as null) on boards without ranging
     return seal(key, topic_report(train_id), _dump(msg))
 
 
@@ -209,6 +214,13 @@ def decode_report(key, topic, payload):
         if (not isinstance(tag, list) or len(tag) != 3 or not isinstance(tag[0], str)
                 or not isinstance(tag[1], int) or not isinstance(tag[2], int)):
             raise WireError("entry %r of 'tags' on %s must be [uid_hex, odo_mm, t_ms]" % (tag, topic))
+    rng = msg.get("rng")
+    if rng is not None:
+        if not isinstance(rng, list) or len(rng) != 2:
+            raise WireError("field 'rng' on %s must be null or [t_ms, gap_mm]" % topic)
+        _int({"rng.t_ms": rng[0]}, "rng.t_ms", 0, INT31, topic)
+        _int({"rng.gap_mm": rng[1]}, "rng.gap_mm", -100000, 1000000, topic)
+    msg["rng"] = rng
     faults = msg.get("flt")
     if not isinstance(faults, list) or any(f not in FAULTS for f in faults):
         raise WireError("field 'flt' on %s must list fault names from %s" % (topic, ", ".join(FAULTS)))

@@ -17,6 +17,8 @@ COMMANDS = (
     "layout",
     "fusion",
     "compare",
+    "ranging",
+    "guard",
 )
 
 

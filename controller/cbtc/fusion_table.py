@@ -6,6 +6,8 @@ Variants (the reports are the same; each variant sees only its sensors):
 - IPS alone: every raw fix, compared with the truth at the instant the beacon sampled it;
 - UKF encoder + IPS: the UKF estimator fed the reports with their tag reads removed;
 - UKF encoder + IPS + RFID: the UKF estimator fed the reports as they are;
+- UKF encoder + IPS + wayside ranging: tags removed, a two-way TOA range to the nearest wayside radio added per
+  report (cbtc.wayside_fusion);
 - odometry estimator: the simple baseline (cbtc.odometry_estimator) on the full reports, for reference.
 
 Estimators are evaluated at each report's sampling instant, with the estimate the controller would use then. Errors
@@ -21,6 +23,7 @@ from .estimate import BoardClock
 from .ips_frame import ips_to_track
 from .odometry_estimator import OdometryEstimator
 from .ukf_estimator import UkfEstimator
+from .wayside_fusion import ranged_estimator
 
 # (key, label, paper RMSE x cm, paper RMSE y cm): Table 1 of the source paper, mean of its trains A and B
 METHODS = (
@@ -28,6 +31,7 @@ METHODS = (
     ("ips", "IPS alone", 27.2, 25.1),
     ("ukf_enc_ips", "UKF encoder + IPS", 13.2, 11.6),
     ("ukf_enc_ips_rfid", "UKF encoder + IPS + RFID", 0.66, 0.57),
+    ("ukf_enc_ips_toa", "UKF encoder + IPS + wayside ranging", None, None),
     ("odometry", "odometry estimator (baseline)", None, None),
 )
 
@@ -169,6 +173,7 @@ def method_traces(layout, record, ukf_params=None):
         "ips": ips_trace(layout, record),
         "ukf_enc_ips": estimator_trace(layout, record, UkfEstimator(layout, record.profile, **params), _strip_tags),
         "ukf_enc_ips_rfid": estimator_trace(layout, record, UkfEstimator(layout, record.profile, **params)),
+        "ukf_enc_ips_toa": estimator_trace(layout, record, ranged_estimator(layout, record, **params), _strip_tags),
         "odometry": estimator_trace(layout, record, OdometryEstimator(layout, record.profile)),
     }
 

@@ -9,7 +9,7 @@ estimates. Control on top of it (paper eqs. 24-26, cbtc.control_laws):
 The onboard braking curve to the end of authority stays the safety net under both.
 """
 
-from .authority import AuthorityParams, minimum_gap_m, moving_block_distance_m
+from .authority import AuthorityParams, combined_sigma_m, minimum_gap_m, moving_block_distance_m
 from .control_laws import departure_accelerations_mps2, departure_k_for, sync_deceleration_mps2
 
 _STANDING_MPS = 0.02
@@ -47,6 +47,8 @@ class MovingBlockPolicy:
         gap_m = layout.ahead_m(own.s_m, tail_s)
         if layout.closed and gap_m > layout.length_m - leader.setup.profile.length_m:
             gap_m -= layout.length_m  # the estimates overlap: negative gap, no authority
+        # the follower's own ranging to the leader, when it has one, caps the gap and checks the picture
+        gap_m = zc.checked_gap_m(state, gap_m, combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m), now_s)
         # position and uncertainty as last seen: the leader can only have moved on since (brick wall), so older data
         # is still safe; it just does not extend the authority (the zone controller holds it while data is stale)
         return moving_block_distance_m(gap_m, own.sigma_s_m, ahead.sigma_s_m, self.params), ahead.v_mps

@@ -45,6 +45,7 @@ class ScenarioConfig:
     link: LinkProfile = field(default_factory=lambda: LinkProfile(latency_s=0.004, jitter_s=0.003, loss=0.01))
     dwell_s: tuple = (1.0, 3.0)
     policy_options: dict = field(default_factory=dict)
+    ranging: dict = None             # RangingSensor settings: every train ranges to the one ahead, guard armed
 
 
 def train_key(seed: int, train_id: str) -> bytes:
@@ -99,7 +100,7 @@ class Simulation:
                                          up=config.link, down=config.link)
             offset_ms = int(rng.integers(0, 10_000_000))
             self.trains.append(VirtualTrain(spec.train_id, train_key(config.seed, spec.train_id), layout, spec.profile,
-                                            spec.s0_m, client, rng, offset_ms))
+                                            spec.s0_m, client, rng, offset_ms, ranging=self._ranging(index)))
         self.recorder = Recorder(self)
         self.zc.start()
         for train in self.trains:
@@ -109,6 +110,16 @@ class Simulation:
             self.scheduler.call_every(config.loop_s, self._ticker(train), start_s=0.001 * (index + 1))
         self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
+
+    def _ranging(self, index):
+        """The train-to-train ranging driver of train `index` (None unless the config asks for ranging)."""
+        if self.config.ranging is None:
+            return None
+        from .sim_ranging import SimRanging
+        from .transponder import RangingSensor
+        sensor = RangingSensor(seed=self.config.seed, **self.config.ranging)
+        rng = np.random.default_rng([self.config.seed, index, 7])
+        return SimRanging(self.config.layout, self.trains, index, sensor, rng)
 
     @staticmethod
     def _ticker(train):

@@ -17,6 +17,7 @@ class SimEncoder:
         self._profile = profile
         self._rng = rng
         self.distance_m = 0.0  # what the wheel has rolled (with errors), not what the train travelled
+        self.scale_fault = 1.0  # fault injection: counts run this many times too fast (1.0: healthy)
 
     def advance(self, ds_m: float) -> None:
         """The train travelled `ds_m` (m, >= 0) in truth."""
@@ -24,7 +25,7 @@ class SimEncoder:
             return
         p = self._profile
         slip = self._rng.normal(0.0, p.encoder_slip_sigma) if p.encoder_slip_sigma > 0 else 0.0
-        self.distance_m += ds_m * (1.0 + p.encoder_scale_error + slip)
+        self.distance_m += ds_m * (1.0 + p.encoder_scale_error + slip) * self.scale_fault
 
     def count(self) -> int:
         return int(math.floor(self.distance_m * self._profile.counts_per_m))
@@ -45,6 +46,7 @@ class SimIps:
         self.crc_errors = 0
         self.frames_ok = 0
         self.unplugged = False
+        self.offset_m = 0.0     # fault injection: fixes placed this far ahead along the track (0.0: healthy)
 
     def sample(self, now_ms: int, s_m: float) -> None:
         """Called by the virtual train every loop with the true head position; samples when a fix is due."""
@@ -56,7 +58,7 @@ class SimIps:
             self._next_sample_ms += period_ms
             if self.unplugged or self._rng.random() < p.ips_dropout:
                 continue
-            x_m, y_m = (float(v) for v in self._layout.xy(s_m))
+            x_m, y_m = (float(v) for v in self._layout.xy(self._layout.wrap(s_m + self.offset_m)))
             x_m += self._rng.normal(0.0, p.ips_sigma_m)
             y_m += self._rng.normal(0.0, p.ips_sigma_m)
             if self._rng.random() < p.ips_outlier:

@@ -90,6 +90,12 @@ def hx_ips(x, layout):
     return np.array([float(px), float(py)])
 
 
+def hx_range(x, layout, radio_x_m, radio_y_m):
+    """The distance (m) from the head at `x[S]` to a wayside radio at (radio_x_m, radio_y_m)."""
+    px, py = layout.xy(x[S])
+    return np.array([math.hypot(float(px) - radio_x_m, float(py) - radio_y_m)])
+
+
 def along_track_residual(layout):
     """`a - b` for vectors whose first entry is an along-track position: on a loop it is the short way round the seam."""
     if not layout.closed:
@@ -185,6 +191,12 @@ class TrackUkf:
         R = np.diag([n.tag_var_m2 + late_m ** 2 / 12.0, n.odo_var_m2])
         self.ukf.residual_z = self._along
         return self._gated_update(np.array([tag_s_m, d_m]), R, self._gate2, hx_tag, rfid_offset_m=offset_m)
+
+    def update_range(self, radio_x_m: float, radio_y_m: float, range_m: float, sigma_m: float) -> bool:
+        """Fold in a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at a surveyed position; True when used."""
+        self.ukf.residual_z = np.subtract
+        return self._gated_update(np.array([range_m]), np.array([[sigma_m ** 2]]), self._gate1, hx_range,
+                                  layout=self.layout, radio_x_m=radio_x_m, radio_y_m=radio_y_m)
 
     def relocate(self, s_m: float, sigma_s_m: float) -> None:
         """Start the position over at `s_m` (m) with 1-sigma `sigma_s_m`, keeping speed, odometer and scale."""

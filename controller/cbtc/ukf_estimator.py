@@ -72,7 +72,7 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
     )
 
 
-_KIND_RANK = {"odo": 0, "tag": 1, "ips": 2}
+_KIND_RANK = {"odo": 0, "tag": 1, "ips": 2, "range": 3}
 
 
 class _Event:
@@ -83,7 +83,8 @@ class _Event:
 
     def __init__(self, t_s, kind, data):
         self.t_s = t_s
-        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m)
+        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m);
+        #                       "range": (radio_x_m, radio_y_m, range_m, sigma_m)
         self.data = data
         self.sort_key = (t_s, _KIND_RANK[kind], data)
 
@@ -170,6 +171,11 @@ class UkfEstimator:
             new.append(_Event(fix_t_ms / 1000.0 - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
 
+    def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
+        """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
+        measured at board time `t_s` (s); applied in time order like every other measurement (cbtc.toa)."""
+        self._insert([_Event(t_s, "range", (float(radio_xy[0]), float(radio_xy[1]), float(range_m), float(sigma_m)))])
+
     def _insert(self, new):
         keys = [e.sort_key for e in self._events]
         start = len(self._events)
@@ -219,6 +225,8 @@ class UkfEstimator:
                 new.tags_used += 1
             else:
                 new.tags_rejected += 1
+        elif event.kind == "range":
+            f.update_range(*event.data)
         elif f.update_ips(*event.data):
             new.ips_used += 1
             new.gated_run = 0
@@ -241,8 +249,8 @@ class UkfEstimator:
         return self._filter
 
     def _locate(self, event):
-        """The first fix or tag read places the train; encoder reports alone cannot."""
-        if event.kind == "odo":
+        """The first fix or tag read places the train; encoder reports and ranges alone cannot."""
+        if event.kind in ("odo", "range"):
             return None
         d_m, v_mps = self._odometer_at(event.t_s)
         if event.kind == "tag":

@@ -1,6 +1,7 @@
 """A virtual train: true physics + simulated drivers + the firmware's own OnboardUnit, on a bus client.
 
-The OnboardUnit is the very class that runs on the board (firmware/obu.py); only its drivers are simulated. The
+The OnboardUnit is the very class that runs on the board (firmware/obu.py); only its drivers are simulated
+(`ranging`: an optional train-to-train ranging driver, cbtc.sim_ranging, which arms the onboard collision guard). The
 scheduler calls `tick(now_s)` every loop period; the board's clock is the scheduler's plus a per-train offset, so
 nothing may assume the two sides share a clock.
 """
@@ -12,7 +13,8 @@ from .sim_drivers import SimEncoder, SimIps, SimMotor, SimRfid
 
 
 class VirtualTrain:
-    def __init__(self, train_id, key, layout, profile, s0_m, client, rng, clock_offset_ms=0, obu_overrides=None):
+    def __init__(self, train_id, key, layout, profile, s0_m, client, rng, clock_offset_ms=0, obu_overrides=None,
+                 ranging=None):
         self.train_id = train_id
         self.layout = layout
         self.profile = profile
@@ -29,7 +31,7 @@ class VirtualTrain:
         config = profile.obu_config()
         config.update(obu_overrides or {})
         self.obu = obu_module.OnboardUnit(train_id, key, self.encoder, self.ips, self.rfid, self.motor,
-                                          self._publish, config)
+                                          self._publish, config, ranging)
         self._last_s = None
         self._now_s = 0.0
         self.frozen = False  # a dead board: no loop, no reports, motor state as it was

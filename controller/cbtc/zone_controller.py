@@ -55,6 +55,9 @@ class TrainState:
         self.stop_overruns = 0
         self.departure = None        # set by the policy during departure control
         self.restarts = 0
+        self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
+        self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
+        self.gap_alarms = 0
 
     @property
     def train_id(self):
@@ -100,6 +103,8 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.cycles = 0
+        self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.transponder.RangingSensor.sigma_m)
+        self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
 
     # --- shell: bus ----------------------------------------------------------------------------------------------
 
@@ -146,6 +151,8 @@ class ZoneController:
         state.report = report
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+        if report.get("rng") is not None:
+            state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
             self._answer_follower(state, recv_s)
 
@@ -267,6 +274,22 @@ class ZoneController:
                 return True
         return False
 
+    def checked_gap_m(self, state, gap_est_m, sigma_m, now_s):
+        """The gap (m) the authority may use: the estimated gap, or the train's own measured gap when that is fresh
+        and shorter. Raises the "picture disagrees" alarm when they differ by more than 3 sigma of the estimate
+        plus 3 sigma of the ranging (`ranging_sigma_m`)."""
+        if state.rng_gap is None or now_s - state.rng_gap[0] > self.params.max_leader_age_s:
+            state.gap_alarm = False
+            return gap_est_m
+        measured_m = state.rng_gap[1]
+        alarm = abs(gap_est_m - measured_m) > 3.0 * (sigma_m + self.ranging_sigma_m)
+        if alarm and not state.gap_alarm:
+            state.gap_alarms += 1
+            log.warning("train %s: picture disagrees: estimated gap %.3f m, measured %.3f m", state.train_id,
+                        gap_est_m, measured_m)
+        state.gap_alarm = alarm
+        return min(gap_est_m, measured_m) if self.use_measured_gap else gap_est_m
+
     # --- supervision ------------------------------------------------------------------------------------------------
 
     def snapshot(self, now_s: float) -> dict:
@@ -284,5 +307,7 @@ class ZoneController:
                 "faults": [] if st.report is None else list(st.report["flt"]),
                 "next_stop": st.next_stop,
                 "reports_rejected": st.reports_rejected,
+                "gap_measured_m": None if st.rng_gap is None else round(st.rng_gap[1], 4),
+                "gap_disagrees": st.gap_alarm,
             }
         return out
