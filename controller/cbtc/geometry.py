@@ -1,102 +1,171 @@
-"""Track path geometry: a chain of straights and circular arcs, parameterised by arc length `s_m`.
+"""Track path geometry: a chain of straights and circular arcs, parameterised by arc length `s_m` (metres).
 
-Pure and vectorised (numpy): `pose(s)` maps arc length to (x, y, heading) for a float or an array; `project(x, y)`
-finds the arc length of the nearest point. A closed path wraps `s` modulo its length.
+Pure functions of `s_m`: `pose(s)` gives (x_m, y_m, heading_rad) for a float or a numpy array of any shape, without a
+Python loop over the points; `project(x, y)` gives the arc length of the nearest point of the path, exactly (closed form
+per segment), for floats or arrays. A closed path wraps `s` modulo its length; an open one clips it to [0, length].
 """
 
+import bisect
 import math
 
 import numpy as np
 
+MAX_ARC_RAD = math.pi   # longer runs of one curvature are split, so every arc is at most a half circle
+
+
+def _runs(segments):
+    """Merge consecutive segments of equal curvature into runs [curvature_per_m, length_m] (0 per m on a straight)."""
+    runs = []
+    for seg in segments:
+        if seg[0] == "straight":
+            k, length = 0.0, float(seg[1])
+        else:
+            radius, angle = float(seg[1]), float(seg[2])
+            k, length = math.copysign(1.0 / radius, angle), radius * abs(angle)
+        if runs and runs[-1][0] == k and abs(k) * (runs[-1][1] + length) <= MAX_ARC_RAD + 1e-12:
+            runs[-1][1] += length
+        else:
+            runs.append([k, length])
+    return runs
+
 
 class Path:
-    """A path of segments, each ('straight', length_m) or ('arc', radius_m, angle_rad) (angle > 0 turns left)."""
+    """A path of segments, each ('straight', length_m) or ('arc', radius_m, angle_rad) (angle > 0 turns left).
 
-    def __init__(self, segments, x0_m=0.0, y0_m=0.0, heading0_rad=0.0, closed=False, sample_step_m=0.005):
+    `segments` keeps them as given; internally consecutive segments of one curvature are merged into runs.
+    """
+
+    def __init__(self, segments, x0_m=0.0, y0_m=0.0, heading0_rad=0.0, closed=False):
         if not segments:
             raise ValueError("a path needs at least one segment")
-        self.closed = closed
-        starts, lengths, kinds, radii, signs = [], [], [], [], []
-        xs, ys, hs = [], [], []
-        x, y, h, s = x0_m, y0_m, heading0_rad, 0.0
-        for seg in segments:
+        self.segments = tuple(segments)
+        self.closed = bool(closed)
+        self.start_pose = (float(x0_m), float(y0_m), float(heading0_rad))
+        starts, lengths, ks, xs, ys, hs, cxs, cys = [], [], [], [], [], [], [], []
+        x, y, h, s = self.start_pose[0], self.start_pose[1], self.start_pose[2], 0.0
+        for k, length in _runs(self.segments):
             starts.append(s)
+            lengths.append(length)
+            ks.append(k)
             xs.append(x)
             ys.append(y)
             hs.append(h)
-            if seg[0] == "straight":
-                length = float(seg[1])
-                kinds.append(0)
-                radii.append(math.inf)
-                signs.append(0.0)
+            if k == 0.0:
+                cxs.append(0.0)
+                cys.append(0.0)
                 x += length * math.cos(h)
                 y += length * math.sin(h)
-            else:
-                radius, angle = float(seg[1]), float(seg[2])
-                length = radius * abs(angle)
-                k = math.copysign(1.0 / radius, angle)
-                kinds.append(1)
-                radii.append(radius)
-                signs.append(k)
-                h1 = h + angle
-                x += (math.sin(h1) - math.sin(h)) / k
-                y -= (math.cos(h1) - math.cos(h)) / k
-                h = h1
-            lengths.append(length)
+            else:  # centre of the circle: one radius to the left of the heading (to the right when k < 0)
+                cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
+                cxs.append(cx)
+                cys.append(cy)
+                h += k * length
+                x, y = cx + math.sin(h) / k, cy - math.cos(h) / k
             s += length
         self.length_m = s
         self.end_pose = (x, y, h)
-        self.start_pose = (x0_m, y0_m, heading0_rad)
+        self._starts = starts                     # Python list for the scalar path (bisect)
+        self._seg = tuple(zip(ks, xs, ys, hs, cxs, cys))
         self._start = np.asarray(starts)
         self._len = np.asarray(lengths)
-        self._kind = np.asarray(kinds)
-        self._k = np.asarray(signs)
-        self._x0 = np.asarray(xs)
-        self._y0 = np.asarray(ys)
-        self._h0 = np.asarray(hs)
-        n = max(2, int(math.ceil(self.length_m / sample_step_m)))
-        self._sample_s = np.linspace(0.0, self.length_m, n, endpoint=not closed)
-        self._sample_xy = np.stack(self.pose(self._sample_s)[:2], axis=-1)
+        self._k = np.asarray(ks)
+        self._arc = self._k != 0.0
+        self._safe_k = np.where(self._arc, self._k, 1.0)
+        self._x0, self._y0, self._h0 = np.asarray(xs), np.asarray(ys), np.asarray(hs)
+        self._cx, self._cy = np.asarray(cxs), np.asarray(cys)
+
+    @property
+    def run_count(self):
+        """Number of runs (maximal pieces of one curvature, arcs at most a half circle) the path is made of."""
+        return len(self._starts)
 
     def wrap(self, s_m):
-        if self.closed:
-            return np.mod(s_m, self.length_m) if isinstance(s_m, np.ndarray) else float(s_m) % self.length_m
-        return np.clip(s_m, 0.0, self.length_m) if isinstance(s_m, np.ndarray) else min(max(float(s_m), 0.0), self.length_m)
+        """Closed: `s_m` modulo the length; open: clipped to [0, length]. Float in, float out; arrays elementwise."""
+        if isinstance(s_m, np.ndarray):
+            return np.mod(s_m, self.length_m) if self.closed else np.clip(s_m, 0.0, self.length_m)
+        s = float(s_m)
+        return s % self.length_m if self.closed else min(max(s, 0.0), self.length_m)
 
-    def pose(self, s_m):
-        """(x_m, y_m, heading_rad) at arc length `s_m` (float or array)."""
-        scalar = np.ndim(s_m) == 0
-        s = np.atleast_1d(np.asarray(self.wrap(np.asarray(s_m, dtype=float)), dtype=float))
-        i = np.clip(np.searchsorted(self._start, s, side="right") - 1, 0, len(self._start) - 1)
-        d = s - self._start[i]
-        h0 = self._h0[i]
-        k = self._k[i]
-        arc = self._kind[i] == 1
-        safe_k = np.where(arc, k, 1.0)
-        h = np.where(arc, h0 + k * d, h0)
-        x = np.where(arc, self._x0[i] + (np.sin(h) - np.sin(h0)) / safe_k, self._x0[i] + d * np.cos(h0))
-        y = np.where(arc, self._y0[i] - (np.cos(h) - np.cos(h0)) / safe_k, self._y0[i] + d * np.sin(h0))
-        if scalar:
-            return float(x[0]), float(y[0]), float(h[0])
+    # --- s -> pose ---------------------------------------------------------------------------------------------
+
+    def _pose_scalar(self, s_m):
+        s = self.wrap(float(s_m))
+        i = max(bisect.bisect_right(self._starts, s) - 1, 0)
+        k, x0, y0, h0, cx, cy = self._seg[i]
+        d = s - self._starts[i]
+        if k == 0.0:
+            return x0 + d * math.cos(h0), y0 + d * math.sin(h0), h0
+        h = h0 + k * d
+        return cx + math.sin(h) / k, cy - math.cos(h) / k, h
+
+    def _pose_on(self, i, d):
+        """Pose at distance `d` (m) into run `i` (arrays of one shape)."""
+        k, h0 = self._k[i], self._h0[i]
+        h = np.where(self._arc[i], h0 + k * d, h0)
+        sk = self._safe_k[i]
+        x = np.where(self._arc[i], self._cx[i] + np.sin(h) / sk, self._x0[i] + d * np.cos(h0))
+        y = np.where(self._arc[i], self._cy[i] - np.cos(h) / sk, self._y0[i] + d * np.sin(h0))
         return x, y, h
 
+    def pose(self, s_m):
+        """(x_m, y_m, heading_rad) at arc length `s_m`: floats for a scalar, arrays of the input's shape for an array.
+
+        The heading is not wrapped: it accumulates from the start heading along the path (3*pi/2, not -pi/2).
+        """
+        if np.ndim(s_m) == 0:
+            return self._pose_scalar(s_m)
+        s = self.wrap(np.asarray(s_m, dtype=float))
+        i = np.clip(np.searchsorted(self._start, s, side="right") - 1, 0, len(self._starts) - 1)
+        return self._pose_on(i, s - self._start[i])
+
     def xy(self, s_m):
-        """Positions, shape (..., 2)."""
+        """Positions in metres, shape `np.shape(s_m) + (2,)`."""
+        if np.ndim(s_m) == 0:
+            x, y, _ = self._pose_scalar(s_m)
+            return np.array((x, y))
         x, y, _ = self.pose(s_m)
         return np.stack([x, y], axis=-1)
 
+    # --- (x, y) -> s -------------------------------------------------------------------------------------------
+
     def project(self, x_m, y_m, s_hint_m=None, window_m=0.5):
-        """Arc length of the point of the path nearest to (x, y); with a hint, the nearest within +/- window of it."""
-        d2 = (self._sample_xy[:, 0] - x_m) ** 2 + (self._sample_xy[:, 1] - y_m) ** 2
-        if s_hint_m is not None:
-            delta = self._sample_s - float(s_hint_m)
-            if self.closed:
-                delta = (delta + self.length_m / 2) % self.length_m - self.length_m / 2
-            d2 = np.where(np.abs(delta) <= window_m, d2, np.inf)
-            if not np.isfinite(d2).any():
-                return self.project(x_m, y_m)
-        s = float(self._sample_s[int(np.argmin(d2))])
-        for _ in range(3):  # refine along the tangent
-            px, py, h = self.pose(s)
-            s = float(self.wrap(s + (x_m - px) * math.cos(h) + (y_m - py) * math.sin(h)))
-        return s
+        """Arc length (m) of the point of the path nearest to (x_m, y_m).
+
+        With `s_hint_m`, only the stretch within `window_m` of the hint (either way, round the seam on a loop) is
+        searched, so the answer is the local solution near the hint even where another part of the track is nearer.
+        Floats or broadcastable arrays; a float for scalar input.
+        """
+        local = s_hint_m is not None and not (self.closed and 2.0 * window_m >= self.length_m)
+        scalar = np.ndim(x_m) == 0 and np.ndim(y_m) == 0 and np.ndim(s_hint_m) == 0
+        x, y, hint = np.broadcast_arrays(np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float),
+                                         np.asarray(s_hint_m if local else 0.0, dtype=float))
+        shape = x.shape
+        px, py = x.reshape(-1, 1), y.reshape(-1, 1)                      # (P, 1) against runs on axis 1
+        lo, hi = self._start[None, :], (self._start + self._len)[None, :]
+        if local:
+            hint = self.wrap(hint.reshape(-1, 1))
+            shifts = (-self.length_m, 0.0, self.length_m) if self.closed else (0.0,)
+            lo = np.concatenate([np.maximum(lo, hint - window_m + sh) for sh in shifts], axis=1)
+            hi = np.concatenate([np.minimum(hi, hint + window_m + sh) for sh in shifts], axis=1)
+        n = len(self._starts)
+        run = np.broadcast_to(np.tile(np.arange(n), lo.shape[1] // n)[None, :], np.broadcast_shapes(lo.shape, px.shape))
+        start = self._start[run]
+        d_lo, d_hi = lo - start, hi - start                               # the searchable stretch of each run
+        usable = d_hi >= d_lo
+        # free minimiser on each run: foot of the perpendicular on a straight, radial foot on an arc
+        k = self._k[run]
+        h0 = self._h0[run]
+        along = (px - self._x0[run]) * np.cos(h0) + (py - self._y0[run]) * np.sin(h0)
+        theta0 = h0 - np.sign(k) * (np.pi / 2)                             # direction centre -> run start
+        theta = np.arctan2(py - self._cy[run], px - self._cx[run])
+        swept = np.mod((theta - theta0) * np.sign(k), 2.0 * np.pi)
+        d_free = np.where(self._arc[run], swept / np.abs(self._safe_k[run]), along)
+        ends = np.stack([np.clip(d_free, d_lo, d_hi), d_lo, d_hi])       # on an arc the nearest may be an end
+        qx, qy, _ = self._pose_on(run, ends)
+        d2 = np.where(usable, (qx - px) ** 2 + (qy - py) ** 2, np.inf)
+        count = px.shape[0]
+        d2 = np.moveaxis(d2, 0, 1).reshape(count, -1)
+        candidates = np.moveaxis(start + ends, 0, 1).reshape(count, -1)
+        best = np.take_along_axis(candidates, np.argmin(d2, axis=1)[:, None], axis=1)[:, 0]
+        s = self.wrap(best).reshape(shape)
+        return float(s) if scalar else s

@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from ..ips_frame import ips_to_track
 from ..layout import layout_names, load_layout
 from .common import format_table, print_json
 
@@ -13,21 +14,30 @@ def register(sub):
     show = verbs.add_parser("show", help="print a layout's length, stations, tags and blocks; draw it")
     show.add_argument("layout", help="YAML file or packaged name (see `cbtc layout list`)")
     show.add_argument("--png", metavar="OUT", help="draw the layout to this PNG")
-    show.add_argument("--json", action="store_true")
+    show.add_argument("--json", action="store_true", help="print the description as JSON")
     show.set_defaults(func=run_show)
     listing = verbs.add_parser("list", help="the packaged layouts")
     listing.set_defaults(func=run_list)
 
 
 def describe(layout) -> dict:
+    """A layout as plain data: lengths and positions in metres, rounded to 0.1 mm."""
+    tag_xy = layout.xy(np.array([t.s_m for t in layout.tags])) if layout.tags else np.zeros((0, 2))
     return {
         "name": layout.name, "source": layout.source, "closed": layout.closed, "length_m": round(layout.length_m, 4),
+        "segments": layout.segment_count,
         "stations": [{"name": s.name, "s_m": s.s_m, "window_m": s.window_m} for s in layout.stations],
-        "tags": [{"uid": t.uid, "s_m": t.s_m, "x_m": round(float(layout.xy(t.s_m)[0]), 4),
-                  "y_m": round(float(layout.xy(t.s_m)[1]), 4)} for t in layout.tags],
+        "tags": [{"uid": t.uid, "s_m": t.s_m, "x_m": round(float(x), 4), "y_m": round(float(y), 4)}
+                 for t, (x, y) in zip(layout.tags, tag_xy)],
         "blocks": [{"name": b.name, "start_m": round(b.start_m, 4), "end_m": round(b.end_m, 4),
-                    "length_m": round(layout.ahead_m(b.start_m, b.end_m) or layout.length_m, 4)} for b in layout.blocks],
+                    "length_m": round(_block_length_m(layout, b), 4)} for b in layout.blocks],
     }
+
+
+def _block_length_m(layout, block):
+    if layout.closed:
+        return layout.ahead_m(block.start_m, block.end_m) or layout.length_m
+    return block.end_m - block.start_m
 
 
 def run_show(args):
@@ -38,12 +48,14 @@ def run_show(args):
     if args.json:
         print_json(info)
         return 0
-    print(f"{info['name']} ({info['source']}): {'closed loop' if info['closed'] else 'open line'}, "
-          f"{info['length_m']} m")
-    print("\nstations:")
-    print(format_table(info["stations"], [("name", "name"), ("s_m", "s m"), ("window_m", "window m")]))
-    print("\nRFID tags:")
-    print(format_table(info["tags"], [("uid", "uid"), ("s_m", "s m"), ("x_m", "x m"), ("y_m", "y m")]))
+    print(f"{info['name']} ({info['source']})")
+    print(f"{'closed loop' if info['closed'] else 'open line'}, {info['length_m']} m, {info['segments']} segments")
+    if info["stations"]:
+        print("\nstations:")
+        print(format_table(info["stations"], [("name", "name"), ("s_m", "s m"), ("window_m", "window m")]))
+    if info["tags"]:
+        print("\nRFID tags:")
+        print(format_table(info["tags"], [("uid", "uid"), ("s_m", "s m"), ("x_m", "x m"), ("y_m", "y m")]))
     if info["blocks"]:
         print("\nfixed blocks:")
         print(format_table(info["blocks"], [("name", "name"), ("start_m", "start m"), ("end_m", "end m"),
@@ -54,53 +66,64 @@ def run_show(args):
 
 
 def run_list(args):
+    rows = []
     for name in layout_names():
         layout = load_layout(name)
-        print(f"{name:16s} {'loop' if layout.closed else 'line':5s} {layout.length_m:7.3f} m  "
-              f"{len(layout.stations)} stations, {len(layout.tags)} tags, {len(layout.blocks)} blocks")
+        rows.append({"name": name, "kind": "loop" if layout.closed else "line", "length_m": f"{layout.length_m:.3f}",
+                     "segments": layout.segment_count, "stations": len(layout.stations), "tags": len(layout.tags),
+                     "blocks": len(layout.blocks)})
+    print(format_table(rows, [("name", "name"), ("kind", "kind"), ("length_m", "length m"), ("segments", "segments"),
+                              ("stations", "stations"), ("tags", "tags"), ("blocks", "blocks")]))
     return 0
 
 
 def draw_png(layout, path):
+    """Draw the track centre line, stations, tags, block boundaries and IPS beacons to a PNG; returns `path`."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    s = np.linspace(0.0, layout.length_m, 2000, endpoint=not layout.closed)
+    s = np.linspace(0.0, layout.length_m, 2000, endpoint=True)
     xy = layout.xy(s)
     fig, ax = plt.subplots(figsize=(7, 7))
-    ax.plot(xy[:, 0], xy[:, 1], color="0.3", lw=3, label="track centre line")
-    start = layout.xy(0.0)
-    ax.annotate("s=0", start, textcoords="offset points", xytext=(4, -12), fontsize=8)
+    ax.plot(xy[:, 0], xy[:, 1], color="0.35", lw=3, zorder=1, label="track centre line")
+    x0, y0, h0 = layout.pose(0.0)
+    ax.annotate("", (x0 + 0.12 * np.cos(h0), y0 + 0.12 * np.sin(h0)), (x0, y0),
+                arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.5}, zorder=4)
+    ax.annotate("s=0", (x0, y0), textcoords="offset points", xytext=(4, 6), fontsize=8)
+    size = float(np.ptp(xy, axis=0).max()) or 1.0
     for st in layout.stations:
         x, y, h = layout.pose(st.s_m)
-        ax.plot(x, y, "s", color="tab:blue", ms=9)
-        ax.annotate(st.name, (x, y), textcoords="offset points", xytext=(-10 * np.sin(h) * 2, 10 * np.cos(h) * 2),
-                    color="tab:blue", fontsize=10, fontweight="bold", ha="center")
+        ax.plot(x, y, "s", color="tab:blue", ms=9, zorder=3)
+        nx, ny = -np.sin(h), np.cos(h)   # left of the direction of travel, towards the inside of a left-hand loop
+        ax.annotate(f"{st.name}\ns={st.s_m:.3f}", (x, y), (x + 0.09 * size * nx, y + 0.09 * size * ny),
+                    color="tab:blue", fontsize=9, fontweight="bold", ha="center", va="center")
     for tag in layout.tags:
-        x, y = layout.xy(tag.s_m)
-        ax.plot(x, y, "o", color="tab:orange", ms=5)
-        ax.annotate(tag.uid[-4:], (x, y), textcoords="offset points", xytext=(3, 3), fontsize=6, color="tab:orange")
+        x, y, h = layout.pose(tag.s_m)
+        ax.plot(x, y, "o", color="tab:orange", ms=5, zorder=3)
+        ax.annotate(tag.uid[-4:], (x, y), (x + 0.035 * size * np.sin(h), y - 0.035 * size * np.cos(h)),
+                    fontsize=6, color="tab:orange", ha="center", va="center")
     for block in layout.blocks:
         x, y, h = layout.pose(block.start_m)
-        dx, dy = -np.sin(h) * 0.06, np.cos(h) * 0.06
-        ax.plot([x - dx, x + dx], [y - dy, y + dy], color="tab:red", lw=2)
-        ax.annotate(block.name, (x + dx, y + dy), fontsize=7, color="tab:red")
-    from ..ips_frame import ips_to_track
-    for bx, by, _bz in layout.ips.beacons:
+        dx, dy = -np.sin(h) * 0.03 * size, np.cos(h) * 0.03 * size
+        ax.plot([x - dx, x + dx], [y - dy, y + dy], color="tab:red", lw=2, zorder=2)
+        ax.annotate(block.name, (x - 1.6 * dx, y - 1.6 * dy), fontsize=7, color="tab:red", ha="center", va="center")
+    for bx, by, bz in layout.ips.beacons:
         x, y = ips_to_track(bx, by, layout.ips)
-        ax.plot(x, y, "^", color="tab:green", ms=8)
-    ax.plot([], [], "s", color="tab:blue", label="station")
-    ax.plot([], [], "o", color="tab:orange", label="RFID tag")
+        ax.plot(x, y, "^", color="tab:green", ms=9)
+        ax.annotate(f"z={bz:g}", (x, y), textcoords="offset points", xytext=(6, 4), fontsize=7, color="tab:green")
+    ax.plot([], [], "s", color="tab:blue", label="station (stop point)")
+    ax.plot([], [], "o", color="tab:orange", label="RFID tag (uid tail)")
     ax.plot([], [], "-", color="tab:red", label="block boundary")
     if layout.ips.beacons:
         ax.plot([], [], "^", color="tab:green", label="IPS beacon")
-    ax.set_aspect("equal")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.08)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{layout.name}: {layout.length_m:.3f} m, {'loop' if layout.closed else 'line'}")
+    ax.set_title(f"{layout.name}: {'loop' if layout.closed else 'line'}, {layout.length_m:.3f} m")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
