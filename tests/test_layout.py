@@ -32,7 +32,7 @@ def test_itb_square_railway():
     for i, st in enumerate(sq.stations):                 # the middle of straights 1, 2, 3
         assert st.s_m == pytest.approx(0.6 + i * (1.2 + corner_m), abs=1e-4) and st.window_m == 0.03
     assert len(sq.tags) == 12 and len({t.uid for t in sq.tags}) == 12
-    assert all(len(t.uid) == 10 and t.uid == t.uid.upper() for t in sq.tags)
+    assert all(len(t.uid) == 8 and t.uid == t.uid.upper() for t in sq.tags)  # 4-byte UIDs, as an MFRC522 reads them
     assert [b.name for b in sq.blocks] == ["B1", "B2", "B3", "B4"]
     assert sum(sq.ahead_m(b.start_m, b.end_m) or sq.length_m for b in sq.blocks) == pytest.approx(sq.length_m)
     assert len(sq.ips.beacons) == 4 and all(z == 1.0 for _x, _y, z in sq.ips.beacons)
@@ -74,8 +74,8 @@ def test_lookups():
     assert sq.station("A").s_m == pytest.approx(2.3027)
     with pytest.raises(LayoutError, match=r"\['main', 'A', 'B'\]"):
         sq.station("C")
-    assert sq.tag_by_uid("04A10000B2").s_m == pytest.approx(2.3027)
-    assert sq.tag_by_uid("04a10000b2") == sq.tag_by_uid("04A10000B2")
+    assert sq.tag_by_uid("04A100B2").s_m == pytest.approx(2.3027)
+    assert sq.tag_by_uid("04a100b2") == sq.tag_by_uid("04A100B2")
     assert sq.tag_by_uid("DEADBEEF00") is None
     quarter = sq.length_m / 4
     assert sq.block_at(0.0).name == "B1" and sq.block_at(quarter - 1e-9).name == "B1"
@@ -187,7 +187,7 @@ def test_layout_show_prints_and_draws(tmp_path, capsys):
     assert cbtc_main(["layout", "show", "itb_square", "--png", str(png)]) == 0
     out = capsys.readouterr().out
     assert "closed loop, 6.8106 m, 8 segments" in out
-    assert "04A10000A1    0.15  0.47   0.0" in out            # uid, s, x = 0.32 + 0.15, y
+    assert "04A100A1    0.15  0.47   0.0" in out            # uid, s, x = 0.32 + 0.15, y
     assert "main" in out and "5.108  6.8106    1.7027" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
 
