@@ -1,12 +1,8 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
-import time
-
 from ..layout import load_layout
-from ..plots import distance_time_png
-from ..scenario import Simulation, queue_scenario
-from .common import format_table, print_json
-from .demo import TRAIN_COLUMNS
+from ..scenario import queue_scenario
+from .common import run_scenario_and_report
 
 
 def register(sub):
@@ -26,16 +22,4 @@ def run(args):
     layout = load_layout(args.layout)
     config = queue_scenario(layout, args.trains, seed=args.seed, duration_s=args.duration, policy=args.policy,
                             estimator=args.estimator)
-    started = time.perf_counter()
-    recorder = Simulation(config).run()
-    wall_s = time.perf_counter() - started
-    summary = recorder.summary()
-    if args.plot:
-        distance_time_png([recorder], [f"{args.trains} trains, {summary['policy']} on {layout.name}"], args.plot)
-    if args.json:
-        print_json(summary)
-    else:
-        print(f"{args.trains} trains on {layout.name}: {summary['simulated_s']} s simulated in {wall_s:.1f} s")
-        print(format_table(summary["trains"], TRAIN_COLUMNS))
-        print(f"collisions {summary['collisions']}, authority overruns {summary['authority_overruns']}")
-    return 0 if summary["collisions"] == 0 else 1
+    return run_scenario_and_report(config, f"{args.trains} trains on {layout.name}, seed {args.seed}", args)

@@ -1,0 +1,84 @@
+"""`cbtc calibrate encoder|ips|tags`: calibration numbers from a recorded run or hand-measured points.
+
+Reports are JSON lines, one decoded report per line (fields as in docs/protocol.md).
+"""
+
+import csv
+import json
+
+from ..calibration import align_ips, counts_per_m, survey_tags, tags_yaml
+from ..errors import ConfigError
+
+
+def register(subparsers):
+    p = subparsers.add_parser("calibrate", help="encoder scale, IPS frame, RFID tag positions from recorded data",
+                              description=__doc__)
+    sub = p.add_subparsers(dest="what", metavar="WHAT")
+    sub.required = True
+    enc = sub.add_parser("encoder", help="counts per metre from a run of measured length")
+    enc.add_argument("--reports", required=True, help="JSON-lines file of the run's reports")
+    enc.add_argument("--distance-m", type=float, required=True, help="distance the train really travelled (m)")
+    enc.add_argument("--counts-per-m", type=float, default=1000.0,
+                     help="the counts_per_m the board used during the run (default 1000)")
+    enc.set_defaults(func=_encoder)
+    ips = sub.add_parser("ips", help="IPS frame (origin, rotation) from points measured in both frames")
+    ips.add_argument("--points", required=True,
+                     help="CSV with header ips_x_mm,ips_y_mm,track_x_m,track_y_m: the hedgehog placed at known spots")
+    ips.set_defaults(func=_ips)
+    tags = sub.add_parser("tags", help="tag positions along the track from a run's RFID reads")
+    tags.add_argument("--reports", required=True, help="JSON-lines file of the run's reports")
+    tags.add_argument("--start-s-m", type=float, default=0.0, help="track position of the head at the first report (m)")
+    tags.add_argument("--loop-m", type=float, default=None, help="loop length (m) for a closed layout")
+    tags.set_defaults(func=_tags)
+
+
+def _reports(path):
+    reports = []
+    try:
+        with open(path) as fh:
+            for number, line in enumerate(fh, 1):
+                if line.strip():
+                    try:
+                        reports.append(json.loads(line))
+                    except ValueError as exc:
+                        raise ConfigError(f"{path} line {number}: not JSON ({exc}); one report object per line") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read {path}: {exc.strerror}") from None
+    if not reports or any(not isinstance(r, dict) or "odo_mm" not in r for r in reports):
+        raise ConfigError(f"{path}: expected JSON lines of reports with an 'odo_mm' field")
+    return reports
+
+
+def _encoder(args):
+    reports = _reports(args.reports)
+    travelled_m = (reports[-1]["odo_mm"] - reports[0]["odo_mm"]) / 1000.0
+    counts = travelled_m * args.counts_per_m
+    value = counts_per_m([counts], [args.distance_m])
+    print(f"odometer {travelled_m:.3f} m for {args.distance_m:.3f} m measured: counts_per_m = {value:.1f}")
+    return 0
+
+
+def _ips(args):
+    ips, track = [], []
+    try:
+        with open(args.points, newline="") as fh:
+            for number, row in enumerate(csv.DictReader(fh), 2):
+                try:
+                    ips.append((float(row["ips_x_mm"]) / 1000.0, float(row["ips_y_mm"]) / 1000.0))
+                    track.append((float(row["track_x_m"]), float(row["track_y_m"])))
+                except (KeyError, TypeError, ValueError):
+                    raise ConfigError(f"{args.points} line {number}: need numbers in ips_x_mm,ips_y_mm,track_x_m,"
+                                      f"track_y_m") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read {args.points}: {exc.strerror}") from None
+    rotation_deg, x_m, y_m, rms_m = align_ips(ips, track)
+    print(f"ips:\n  origin_x_m: {x_m:.4f}\n  origin_y_m: {y_m:.4f}\n  rotation_deg: {rotation_deg:.3f}\n"
+          f"# rms residual {rms_m * 1000:.1f} mm over {len(ips)} points")
+    return 0
+
+
+def _tags(args):
+    survey = survey_tags(_reports(args.reports), args.start_s_m, loop_m=args.loop_m)
+    print("tags:")
+    print(tags_yaml(survey), end="")
+    return 0

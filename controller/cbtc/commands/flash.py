@@ -1,0 +1,32 @@
+"""`cbtc flash`: deploy the firmware and a generated train_config.py to a board, verify, reset, see it boot."""
+
+import os
+
+from ..flash import flash
+
+
+def register(subparsers):
+    p = subparsers.add_parser("flash", help="copy the firmware to a train board with mpremote and verify it boots",
+                              description=__doc__)
+    p.add_argument("--port", required=True, help="serial port of the board, e.g. /dev/ttyUSB0")
+    p.add_argument("--train", required=True, help="train id (1-16 of A-Z a-z 0-9 _ -)")
+    p.add_argument("--broker", default="mqtt://192.168.1.10:1883", help="broker the board connects to: mqtt://HOST[:PORT]")
+    p.add_argument("--wifi-ssid", default=None, help="Wi-Fi network (omit to leave the board's Wi-Fi as it is)")
+    p.add_argument("--wifi-password", default=os.environ.get("CBTC_WIFI_PASSWORD", ""),
+                   help="Wi-Fi password (default: $CBTC_WIFI_PASSWORD)")
+    p.add_argument("--key", default=os.environ.get("CBTC_TRAIN_KEY"),
+                   help="the train's 16-byte key as 32 hex digits (default: $CBTC_TRAIN_KEY); the zone controller "
+                        "must hold the same key")
+    p.add_argument("--timeout", type=float, default=120.0, help="seconds allowed for copying (default 120)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    from ..errors import ConfigError
+
+    if not args.key:
+        raise ConfigError("--key is required (or set CBTC_TRAIN_KEY): 32 hex digits, the train's key")
+    result = flash(args.port, args.train, args.key, args.broker, args.wifi_ssid, args.wifi_password,
+                   timeout_s=args.timeout)
+    print(f"flashed {result['files']} files to {result['port']}; train {args.train} booted firmware {result['version']}")
+    return 0
