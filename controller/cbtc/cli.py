@@ -19,6 +19,8 @@ COMMANDS = (
     "compare",
     "ranging",
     "guard",
+    "flash",
+    "calibrate",
 )
 
 

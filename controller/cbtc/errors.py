@@ -15,3 +15,7 @@ class ConfigError(CbtcError, ValueError):
 
 class BusError(CbtcError, ConnectionError):
     """The message bus (mock broker or a real MQTT broker) failed or refused us."""
+
+
+class BoardError(CbtcError, OSError):
+    """A train board could not be reached, written or verified; the message names the port and what to do."""

@@ -41,7 +41,8 @@ def _reports(path):
                     try:
                         reports.append(json.loads(line))
                     except ValueError as exc:
-                        raise ConfigError(f"{path} line {number}: not JSON ({exc}); one report object per line") from None
+                        raise ConfigError(f"{path} line {number}: not JSON ({exc}); "
+                                          f"one report object per line") from None
     except OSError as exc:
         raise ConfigError(f"cannot read {path}: {exc.strerror}") from None
     if not reports or any(not isinstance(r, dict) or "odo_mm" not in r for r in reports):

@@ -10,7 +10,8 @@ def register(subparsers):
                               description=__doc__)
     p.add_argument("--port", required=True, help="serial port of the board, e.g. /dev/ttyUSB0")
     p.add_argument("--train", required=True, help="train id (1-16 of A-Z a-z 0-9 _ -)")
-    p.add_argument("--broker", default="mqtt://192.168.1.10:1883", help="broker the board connects to: mqtt://HOST[:PORT]")
+    p.add_argument("--broker", default="mqtt://192.168.1.10:1883",
+                   help="broker the board connects to: mqtt://HOST[:PORT]")
     p.add_argument("--wifi-ssid", default=None, help="Wi-Fi network (omit to leave the board's Wi-Fi as it is)")
     p.add_argument("--wifi-password", default=os.environ.get("CBTC_WIFI_PASSWORD", ""),
                    help="Wi-Fi password (default: $CBTC_WIFI_PASSWORD)")
@@ -28,5 +29,6 @@ def run(args):
         raise ConfigError("--key is required (or set CBTC_TRAIN_KEY): 32 hex digits, the train's key")
     result = flash(args.port, args.train, args.key, args.broker, args.wifi_ssid, args.wifi_password,
                    timeout_s=args.timeout)
-    print(f"flashed {result['files']} files to {result['port']}; train {args.train} booted firmware {result['version']}")
+    print(f"flashed {result['files']} files to {result['port']}; "
+          f"train {args.train} booted firmware {result['version']}")
     return 0

@@ -1,0 +1,187 @@
+"""NXP MFRC522 13.56 MHz reader on SPI: reads the 4-byte UID of ISO 14443A tags laid between the rails.
+
+Mfrc522(spi, cs, rst) takes a ready `machine.SPI` (mode 0, up to 10 MHz, MSB first) and ready output pins for chip
+select and reset. Register access: one SPI transaction per register, address byte (reg << 1) & 0x7E, with 0x80 set to
+read. A reader that does not answer (version register not one of the known chips, or the bus raising OSError) leaves
+`present` False; then `poll` returns None and nothing ever raises.
+
+Only cascade level 1 is run: a 7-byte-UID tag reads as its cascade tag 0x88 and the first three UID bytes, which
+still names the tag on one layout.
+"""
+
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(value):
+        return value
+
+try:
+    from time import ticks_diff
+except ImportError:  # CPython: plain integers do not wrap
+    def ticks_diff(end, start):
+        return end - start
+
+# registers
+_COMMAND = const(0x01)        # CommandReg: starts and stops commands
+_COM_IRQ = const(0x04)        # ComIrqReg: interrupt request bits
+_ERROR = const(0x06)          # ErrorReg: error bits of the last command
+_FIFO_DATA = const(0x09)      # FIFODataReg: input and output of the 64-byte FIFO
+_FIFO_LEVEL = const(0x0A)     # FIFOLevelReg: bytes in the FIFO; bit 7 flushes
+_CONTROL = const(0x0C)        # ControlReg: RxLastBits in bits 2..0
+_BIT_FRAMING = const(0x0D)    # BitFramingReg: StartSend bit 7, TxLastBits in bits 2..0
+_MODE = const(0x11)           # ModeReg: CRC preset
+_TX_CONTROL = const(0x14)     # TxControlReg: antenna drivers TX1/TX2 in bits 1..0
+_TX_ASK = const(0x15)         # TxASKReg: force 100 % ASK
+_T_MODE = const(0x2A)         # TModeReg: timer auto start, prescaler high bits
+_T_PRESCALER = const(0x2B)    # TPrescalerReg: prescaler low bits
+_T_RELOAD_H = const(0x2C)     # TReloadReg high byte
+_T_RELOAD_L = const(0x2D)     # TReloadReg low byte
+_VERSION = const(0x37)        # VersionReg: chip type and version
+
+# register bits and values
+_CMD_IDLE = const(0x00)       # no action, cancels the current command
+_CMD_TRANSCEIVE = const(0x0C)  # send the FIFO, then receive into it
+_CMD_SOFT_RESET = const(0x0F)  # reset the chip
+_POWER_DOWN = const(0x10)     # CommandReg bit: soft power-down (set while the reset runs)
+_START_SEND = const(0x80)     # BitFramingReg: start transmission of Transceive
+_FLUSH = const(0x80)          # FIFOLevelReg: flush the FIFO
+_IRQ_ALL = const(0x7F)        # ComIrqReg: writing with bit 7 clear clears these bits
+_IRQ_RX_IDLE = const(0x30)    # RxIRq | IdleIRq: the answer is in
+_IRQ_TIMER = const(0x01)      # TimerIRq: no answer before the timer ran out
+_ERR_FATAL = const(0x13)      # BufferOvfl | ParityErr | ProtocolErr
+_ANTENNA_ON = const(0x03)     # TxControlReg: TX1 and TX2 on
+
+# ISO 14443A
+_REQA = const(0x26)           # request (7-bit short frame): idle cards answer with ATQA
+_SEL_CL1 = const(0x93)        # select / anticollision, cascade level 1
+_NVB_ANTICOLL = const(0x20)   # number of valid bits: 2 bytes, ask for the whole UID
+
+_VERSIONS = (0x91, 0x92, 0x88, 0x12)   # MFRC522 v1.0, v2.0, FM17522 clone, another clone
+_POLL_MS = const(50)          # shortest time between two reads (ms)
+_ABSENT_MS = const(300)       # a tag must be gone this long before it is reported again (ms)
+_WAIT_LOOPS = const(400)      # register polls before a transceive is given up
+
+
+class Mfrc522:
+    def __init__(self, spi, cs, rst):
+        self._spi = spi
+        self._cs = cs
+        self._rst = rst
+        self._tx = bytearray(2)
+        self._rx = bytearray(2)
+        self.version = 0
+        self.present = False
+        self._last_poll_ms = None
+        self._last_uid = None
+        self._last_seen_ms = 0
+        try:
+            self._start()
+        except OSError:
+            self.present = False
+
+    # --- registers ---------------------------------------------------------------------------------------
+
+    def _write(self, reg, value):
+        self._tx[0] = (reg << 1) & 0x7E
+        self._tx[1] = value
+        self._cs.value(0)
+        try:
+            self._spi.write(self._tx)
+        finally:
+            self._cs.value(1)
+
+    def _read(self, reg):
+        self._tx[0] = ((reg << 1) & 0x7E) | 0x80
+        self._tx[1] = 0
+        self._cs.value(0)
+        try:
+            self._spi.write_readinto(self._tx, self._rx)
+        finally:
+            self._cs.value(1)
+        return self._rx[1]
+
+    def _set_bits(self, reg, mask):
+        self._write(reg, self._read(reg) | mask)
+
+    def _clear_bits(self, reg, mask):
+        self._write(reg, self._read(reg) & (0xFF ^ mask))
+
+    # --- chip ----------------------------------------------------------------------------------------------
+
+    def _start(self):
+        self._cs.value(1)
+        self._rst.value(1)
+        self.version = self._read(_VERSION)
+        if self.version not in _VERSIONS:
+            return
+        self._write(_COMMAND, _CMD_SOFT_RESET)
+        for _ in range(_WAIT_LOOPS):
+            if not self._read(_COMMAND) & _POWER_DOWN:
+                break
+        self._write(_T_MODE, 0x8D)        # timer starts after sending; prescaler 0xD3E: 2 kHz ticks
+        self._write(_T_PRESCALER, 0x3E)
+        self._write(_T_RELOAD_H, 0)
+        self._write(_T_RELOAD_L, 10)      # 10 ticks: 5 ms answer timeout
+        self._write(_TX_ASK, 0x40)
+        self._write(_MODE, 0x3D)          # CRC preset 0x6363 (ISO 14443A)
+        self._set_bits(_TX_CONTROL, _ANTENNA_ON)
+        self.present = True
+
+    def _transceive(self, data, tx_last_bits):
+        """Send `data` (bytes), last byte with `tx_last_bits` bits (0 = 8); the answer bytes or None."""
+        self._write(_COMMAND, _CMD_IDLE)
+        self._write(_COM_IRQ, _IRQ_ALL)
+        self._write(_FIFO_LEVEL, _FLUSH)
+        for byte in data:
+            self._write(_FIFO_DATA, byte)
+        self._write(_BIT_FRAMING, tx_last_bits)
+        self._write(_COMMAND, _CMD_TRANSCEIVE)
+        self._set_bits(_BIT_FRAMING, _START_SEND)
+        irq = 0
+        for _ in range(_WAIT_LOOPS):
+            irq = self._read(_COM_IRQ)
+            if irq & (_IRQ_RX_IDLE | _IRQ_TIMER):
+                break
+        self._clear_bits(_BIT_FRAMING, _START_SEND)
+        if not irq & _IRQ_RX_IDLE or irq & _IRQ_TIMER:
+            return None
+        if self._read(_ERROR) & _ERR_FATAL:
+            return None
+        count = self._read(_FIFO_LEVEL)
+        if count > 16:
+            return None
+        return bytes(self._read(_FIFO_DATA) for _ in range(count))
+
+    # --- tags ----------------------------------------------------------------------------------------------
+
+    def read_uid(self):
+        """Upper-case hex UID (8 characters) of a tag in the field, or None (no tag, a garbled answer, no reader)."""
+        if not self.present:
+            return None
+        atqa = self._transceive(bytes((_REQA,)), 7)
+        if atqa is None or len(atqa) != 2:
+            return None
+        uid = self._transceive(bytes((_SEL_CL1, _NVB_ANTICOLL)), 0)
+        if uid is None or len(uid) != 5:
+            return None
+        if uid[0] ^ uid[1] ^ uid[2] ^ uid[3] != uid[4]:
+            return None
+        return "%02X%02X%02X%02X" % (uid[0], uid[1], uid[2], uid[3])
+
+    def poll(self, now_ms):
+        """Rate-limited read at board time `now_ms` (monotonic ms): a tag's UID once per passage, else None.
+
+        Reads at most every 50 ms; the same UID is reported again only after it has been absent for 300 ms.
+        """
+        if not self.present:
+            return None
+        if self._last_poll_ms is not None and ticks_diff(now_ms, self._last_poll_ms) < _POLL_MS:
+            return None
+        self._last_poll_ms = now_ms
+        uid = self.read_uid()
+        if uid is None:
+            return None
+        fresh = uid != self._last_uid or ticks_diff(now_ms, self._last_seen_ms) >= _ABSENT_MS
+        self._last_uid = uid
+        self._last_seen_ms = now_ms
+        return uid if fresh else None

@@ -1,0 +1,202 @@
+"""The firmware booted under the MicroPython unix port talks to a real Mosquitto: it reports, obeys, brakes.
+
+The board is `micropython` running firmware/main.py (precompiled, as `cbtc flash` deploys it) with the host shims:
+Wi-Fi joins at once, the UART holds what the IPS sent (garbage, a corrupted frame, a good fix), no RFID reader is
+on the SPI bus. A paho client plays the zone controller: it decodes reports with wire.decode_report and sends sealed
+commands with wire.encode_command. Then the broker is killed and restarted: the board keeps looping, brakes when its
+command expires, reconnects with backoff and reports again; when the board dies, its last will says `offline`.
+"""
+
+import os
+import re
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import paho.mqtt.client as mqtt
+import pytest
+
+from cbtc.firmware_modules import wire
+from mpy_harness import (MPY_TESTS_DIR, SHIMS_DIR, micropython_argv, micropython_env, requires_micropython,
+                          requires_umqtt)
+
+for _folder in (SHIMS_DIR, MPY_TESTS_DIR):
+    if _folder not in sys.path:
+        sys.path.insert(0, _folder)
+
+from check_ips import position  # noqa: E402  (frame builder with an independent CRC)
+
+pytestmark = [requires_micropython, requires_umqtt]
+
+KEY = b"0123456789abcdef"
+TRAIN = "A"
+BOOT_HEAP = "64K"   # see the module's heap figures in docs/hardware.md
+
+
+def free_port():
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def wait_port(port, timeout_s=5.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise AssertionError("mosquitto did not listen on port %d" % port)
+
+
+class Mosquitto:
+    """A private Mosquitto on a loopback port, restartable on the same port."""
+
+    def __init__(self, folder, port):
+        self.port = port
+        self.conf = os.path.join(folder, "mosquitto.conf")
+        with open(self.conf, "w") as fh:
+            fh.write("listener %d 127.0.0.1\nallow_anonymous true\nset_tcp_nodelay true\nlog_dest stderr\n"
+                     "persistence false\n" % port)
+        self.proc = None
+
+    def start(self):
+        exe = "/usr/sbin/mosquitto" if os.path.exists("/usr/sbin/mosquitto") else "mosquitto"
+        self.proc = subprocess.Popen([exe, "-c", self.conf], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        wait_port(self.port)
+
+    def stop(self):
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait(5)
+            self.proc = None
+
+
+class Controller:
+    """A paho client standing in for the zone controller: decoded reports, retained status, sealed commands."""
+
+    def __init__(self, port):
+        self.reports = []
+        self.status = []
+        self.rejected = []
+        self.cmd_seq = 0
+        self.lock = threading.Lock()
+        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="test-zc")
+        self.client.on_message = self._on_message
+        self.client.on_connect = lambda c, u, f, rc, p: c.subscribe("cbtc/train/%s/#" % TRAIN)
+        self.client.reconnect_delay_set(0.2, 0.5)
+        self.client.connect("127.0.0.1", port)
+        self.client.loop_start()
+
+    def _on_message(self, _client, _userdata, msg):
+        with self.lock:
+            if msg.topic.endswith("/report"):
+                try:
+                    self.reports.append(wire.decode_report(KEY, msg.topic, msg.payload))
+                except wire.WireError as exc:
+                    self.rejected.append(exc.reason)
+            elif msg.topic.endswith("/status"):
+                self.status.append(msg.payload)
+
+    def last(self):
+        with self.lock:
+            return self.reports[-1] if self.reports else None
+
+    def wait(self, predicate, timeout_s, what):
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            report = self.last()
+            if report is not None and predicate(report):
+                return report
+            time.sleep(0.02)
+        raise AssertionError("timed out waiting for %s; last report %r" % (what, self.last()))
+
+    def command(self, v_mmps=400, eoa_mm=100000, ttl_ms=800):
+        report = self.last()
+        self.cmd_seq += 1
+        payload = wire.encode_command(KEY, TRAIN, self.cmd_seq, 7, report["seq"], v_mmps, eoa_mm, ttl_ms, 600, 800)
+        self.client.publish(wire.topic_command(TRAIN), payload)
+
+    def close(self):
+        self.client.loop_stop()
+        self.client.disconnect()
+
+
+def start_board(tree, cfg_dir, port, uart_bytes):
+    with open(os.path.join(cfg_dir, "train_config.py"), "w") as fh:
+        fh.write("CONFIG = %r\n" % {
+            "train_id": TRAIN, "key_hex": KEY.hex(), "wifi_ssid": "lab", "wifi_password": "pw",
+            "broker_host": "127.0.0.1", "broker_port": port, "keepalive_s": 5, "stats_ms": 250,
+            "repl_grace_ms": 0, "backoff_min_ms": 200, "backoff_max_ms": 1000})
+    script = ("import binascii, machine\nmachine.UART_RX[0] = binascii.unhexlify(%r)\nimport main\n"
+              % uart_bytes.hex())
+    return subprocess.Popen(micropython_argv(BOOT_HEAP) + ["-c", script], env=micropython_env(tree, [cfg_dir]),
+                            cwd=cfg_dir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def test_board_boots_reports_obeys_brakes_and_survives_a_lost_broker(mpy_tree, tmp_path):
+    broker = Mosquitto(str(tmp_path), free_port())
+    broker.start()
+    zc = Controller(broker.port)
+    corrupted = bytearray(position(111, 222, 0))
+    corrupted[12] ^= 0x01
+    uart = bytes([0x00, 0x47, 0xFF, 0x13]) + bytes(corrupted) + position(1234, -567, 89)
+    board = start_board(mpy_tree, str(tmp_path), broker.port, uart)
+    try:
+        first = zc.wait(lambda r: True, 10, "the first report")
+        assert first["mode"] == "idle" and first["duty"] == 0 and first["cseq"] == -1
+        assert zc.status and zc.status[-1] == b"online"
+        seen = zc.wait(lambda r: r["ips"] is not None or r["seq"] > 5, 3, "the IPS fix")
+        reports = list(zc.reports)
+        fixes = [r["ips"] for r in reports if r["ips"] is not None]
+        assert fixes and fixes[0][1:] == [1234, -567], fixes
+        assert "ips_crc" in seen["flt"] and "rfid_absent" in seen["flt"]
+        assert not zc.rejected
+
+        # obey: commands at 10 Hz -> run with a positive duty (the shim encoder never moves: the PI winds up)
+        deadline = time.monotonic() + 1.5
+        while time.monotonic() < deadline:
+            zc.command(ttl_ms=800)
+            time.sleep(0.1)
+        running = zc.wait(lambda r: r["mode"] == "run" and r["duty"] > 0, 1, "run with duty")
+        assert running["cseq"] >= 1
+
+        # silence: the command expires and the train brakes to a stop
+        stopped = zc.wait(lambda r: r["mode"] == "stop" and r["duty"] == 0, 3, "stop after expiry")
+        assert "cmd_timeout" in stopped["flt"]
+
+        # run again with a long command, then lose the broker while running
+        deadline = time.monotonic() + 0.6
+        while time.monotonic() < deadline:
+            zc.command(ttl_ms=2500)
+            time.sleep(0.1)
+        zc.wait(lambda r: r["mode"] == "run" and r["duty"] > 0, 1, "run before the broker dies")
+        broker.stop()
+        time.sleep(3.5)                       # longer than the command's validity: the board must have braked
+        count_before = len(zc.reports)
+        broker.start()
+        back = zc.wait(lambda r: len(zc.reports) > count_before + 3, 10, "reports after the broker came back")
+        assert back["mode"] == "stop" and back["duty"] == 0 and "broker_lost" not in back["flt"]
+        assert zc.status[-1] == b"online"
+    finally:
+        board.kill()
+        out = board.communicate(timeout=10)[0]
+        zc_status = list(zc.status)
+        time.sleep(0.3)
+        zc.close()
+        broker.stop()
+    print(out[-2000:])
+    stats = re.findall(r"stats: up_ms (\d+) heap_peak (\d+) heap_free (\d+) link (\w+) losses (\d+) mode (\w+) "
+                       r"errors (\d+)", out)
+    assert stats, out
+    assert "lego-cbtc train A boot" in out
+    assert any(s[3] == "down" and s[5] == "stop" for s in stats), "the board braked while the broker was gone"
+    assert int(stats[-1][4]) >= 1                      # the loss was counted, the loop went on
+    assert all(s[6] == "0" for s in stats), "no exception reached the loop"
+    peak = max(int(s[1]) for s in stats)
+    print("firmware on the 64-bit unix port: peak heap %d bytes (heap %s)" % (peak, BOOT_HEAP))
+    assert peak < 64 * 1024
+    assert zc_status[0] == b"online"

@@ -1,0 +1,65 @@
+"""Calibration arithmetic against hand-computed values and the layout's own frame transform; the command on files."""
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from cbtc.calibration import align_ips, counts_per_m, survey_tags, tags_yaml
+from cbtc.cli import main as cli_main
+from cbtc.errors import ConfigError
+from cbtc.ips_frame import track_to_ips
+
+
+def test_counts_per_m_is_least_squares_through_the_origin():
+    # hand-computed: sum(c d) / sum(d^2) = (1230*1 + 2470*2) / (1 + 4) = 6170 / 5 = 1234
+    assert counts_per_m([1230, 2470], [1.0, 2.0]) == pytest.approx(1234.0)
+    with pytest.raises(ConfigError, match="> 0"):
+        counts_per_m([10], [0.0])
+
+
+def test_align_ips_recovers_the_layout_frame():
+    frame = SimpleNamespace(origin_x_m=-0.1, origin_y_m=0.35, rotation_deg=30.0)
+    rng = np.random.default_rng(7)
+    track = rng.uniform(-1.0, 2.0, size=(12, 2))
+    ips = np.array([track_to_ips(x, y, frame) for x, y in track])
+    rotation_deg, x_m, y_m, rms_m = align_ips(ips, track)
+    assert rotation_deg == pytest.approx(30.0, abs=1e-9)
+    assert (x_m, y_m) == (pytest.approx(-0.1, abs=1e-9), pytest.approx(0.35, abs=1e-9))
+    assert rms_m < 1e-9
+    noisy = ips + rng.normal(0.0, 0.01, size=ips.shape)     # 1 cm IPS noise: the fit stays within it
+    rotation_deg, x_m, y_m, rms_m = align_ips(noisy, track)
+    assert abs(rotation_deg - 30.0) < 1.0 and math.hypot(x_m + 0.1, y_m - 0.35) < 0.02 and 0.003 < rms_m < 0.02
+
+
+def test_survey_tags_from_odometer_reads_on_a_loop():
+    reports = [{"odo_mm": 500, "tags": []},
+               {"odo_mm": 900, "tags": [["04A1", 800, 10]]},
+               {"odo_mm": 4000, "tags": [["04B2", 3900, 20]]},
+               {"odo_mm": 5500, "tags": [["04A1", 5404, 30]]}]   # second lap: 5404 - 500 = 4904 mm
+    survey = survey_tags(reports, start_s_m=1.0, loop_m=4.6)
+    # 04A1: 1.0 + 0.3 = 1.3 and 1.0 + 4.904 - 4.6 = 1.304 -> mean 1.302; 04B2: 1.0 + 3.4 = 4.4
+    assert [(uid, round(s, 6), n) for uid, s, n in survey] == [("04A1", 1.302, 2), ("04B2", 4.4, 1)]
+    assert tags_yaml(survey).splitlines()[0] == '  - {uid: "04A1", s_m: 1.302}   # 2 reads'
+
+
+def test_calibrate_command_on_recorded_files(tmp_path, capsys):
+    run = tmp_path / "run.jsonl"
+    run.write_text("\n".join(json.dumps(r) for r in (
+        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5]]}, {"odo_mm": 2100, "tags": []})))
+    assert cli_main(["calibrate", "encoder", "--reports", str(run), "--distance-m", "2.0",
+                     "--counts-per-m", "1000"]) == 0
+    assert "counts_per_m = 1050.0" in capsys.readouterr().out      # 2.1 m counted for 2.0 m travelled
+    assert cli_main(["calibrate", "tags", "--reports", str(run), "--start-s-m", "0.25"]) == 0
+    assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
+    points = tmp_path / "points.csv"
+    points.write_text("ips_x_mm,ips_y_mm,track_x_m,track_y_m\n0,0,1,2\n1000,0,1,3\n0,1000,0,2\n")
+    assert cli_main(["calibrate", "ips", "--points", str(points)]) == 0
+    out = capsys.readouterr().out
+    assert "origin_x_m: 1.0000" in out and "origin_y_m: 2.0000" in out and "rotation_deg: 90.000" in out
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text("{not json\n")
+    assert cli_main(["calibrate", "tags", "--reports", str(bad)]) == 2
+    assert "bad.jsonl line 1" in capsys.readouterr().err
