@@ -96,3 +96,35 @@ def test_faulty_leader_guard_prevents_the_collision_that_happens_without_it():
         assert off["follower_collisions"] > 0, off
         assert on["collisions"] == 0 and on["guard_trips"] > 0, on
         assert on["min_gap_m"] > 0.0
+
+
+def test_the_controller_takes_the_shorter_of_estimated_and_measured_gap_and_raises_the_alarm():
+    from cbtc.layout import load_layout
+    from cbtc.moving_block import MovingBlockPolicy
+    from cbtc.zone_controller import TrainSetup, ZoneController
+
+    class Quiet:
+        def publish(self, *a, **k):
+            pass
+
+        def subscribe(self, *a, **k):
+            pass
+
+    zc = ZoneController(load_layout("itb_square"), [TrainSetup("A", b"k" * 16), TrainSetup("B", b"j" * 16)], Quiet(),
+                        lambda: 10.0, MovingBlockPolicy())
+    state = zc.trains["B"]
+    # no measurement: the estimate stands, no alarm
+    assert zc.checked_gap_m(state, 1.0, 0.01, 10.0) == 1.0 and not state.gap_alarm
+    # a fresh measurement that agrees within 3 (sigma + ranging sigma): the shorter is used, no alarm
+    state.rng_gap = (9.9, 0.95)
+    assert zc.checked_gap_m(state, 1.0, 0.01, 10.0) == 0.95 and not state.gap_alarm
+    # the picture is wrong: the train ahead is much closer than estimated
+    state.rng_gap = (9.9, 0.40)
+    assert zc.checked_gap_m(state, 1.0, 0.01, 10.0) == 0.40
+    assert state.gap_alarm and state.gap_alarms == 1
+    # a stale measurement is not used
+    assert zc.checked_gap_m(state, 1.0, 0.01, 12.0) == 1.0 and not state.gap_alarm
+    # alarm only: the measurement does not shorten the authority
+    zc.use_measured_gap = False
+    state.rng_gap = (9.9, 0.40)
+    assert zc.checked_gap_m(state, 1.0, 0.01, 10.0) == 1.0 and state.gap_alarm
