@@ -9,3 +9,6 @@ def mpy_tree(tmp_path_factory):
     from mpy_harness import build_tree
 
     return build_tree(str(tmp_path_factory.mktemp("mpy_tree")))
+
+
+from mosquitto_fixture import mosquitto, secured_mosquitto  # noqa: E402,F401  (real-broker fixtures)

@@ -21,6 +21,7 @@ COMMANDS = (
     "guard",
     "flash",
     "calibrate",
+    "zone", "trains", "keys", "broker", "bench",
 )
 
 

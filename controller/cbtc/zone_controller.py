@@ -266,6 +266,14 @@ class ZoneController:
             max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)))
         self.client.publish(wire.topic_command(state.train_id), payload)
 
+    def stop_all(self, now_s: float) -> None:
+        """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
+        its braking distance, never beyond the one it holds)."""
+        for state in self.trains.values():
+            if state.report is not None:
+                beta_mps2 = state.setup.profile.beta_s_mps2
+                self._command(state, None, None, 0.0, beta_mps2, beta_mps2, now_s)
+
     def _leader_stale(self, state, now_s):
         """True when the data of some other train is older than the limit: the authority must not extend."""
         for other in self.trains.values():

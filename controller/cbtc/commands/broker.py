@@ -1,0 +1,41 @@
+"""`cbtc broker config`: a Mosquitto 2.x configuration with passwords and per-train ACLs.
+
+Writes mosquitto.conf, passwd, acl and credentials.json into a folder: start the broker with
+`mosquitto -c DIR/mosquitto.conf`, give `--credentials DIR/credentials.json` to `cbtc zone` and `cbtc trains`.
+The zone controller logs in as `zc`, each train as `train-<id>` and may publish only its own report and status and
+read only its own commands.
+"""
+
+import os
+
+from ..broker_config import load_credentials, write_config
+from ..live import parse_ids
+
+
+def register(sub):
+    p = sub.add_parser("broker", help="generate a Mosquitto configuration with per-train ACLs", description=__doc__)
+    broker_sub = p.add_subparsers(dest="broker_command", metavar="ACTION")
+    broker_sub.required = True
+    cfg = broker_sub.add_parser("config", help="write mosquitto.conf, passwd, acl, credentials.json",
+                                description=__doc__)
+    cfg.add_argument("--trains", required=True, metavar="IDS", help="train ids, e.g. A,B")
+    cfg.add_argument("--out", required=True, metavar="DIR", help="folder to write the files into")
+    cfg.add_argument("--port", type=int, default=1883, help="listener port (default 1883)")
+    cfg.add_argument("--host", default="127.0.0.1", help="listener address (default 127.0.0.1; 0.0.0.0 for boards "
+                                                         "on the Wi-Fi)")
+    cfg.add_argument("--run-as", default=None, metavar="USER",
+                     help="user Mosquitto runs as when started as root (default: its own, `mosquitto`)")
+    cfg.add_argument("--keep-passwords", action="store_true",
+                     help="reuse the passwords of an existing DIR/credentials.json (boards keep working)")
+    cfg.set_defaults(func=run_config)
+
+
+def run_config(args):
+    ids = parse_ids(args.trains)
+    old = os.path.join(args.out, "credentials.json")
+    keep = load_credentials(old) if args.keep_passwords and os.path.exists(old) else None
+    paths = write_config(args.out, ids, port=args.port, host=args.host, credentials=keep, run_as=args.run_as)
+    print(f"wrote {', '.join(sorted(paths.values()))}")
+    print(f"start the broker: mosquitto -c {paths['mosquitto.conf']}")
+    print(f"then: cbtc zone --broker mqtt://{args.host}:{args.port} --credentials {paths['credentials.json']} ...")
+    return 0

@@ -1,0 +1,34 @@
+"""`cbtc keys new`: a JSON keys file {train_id: hex key}, one random 16-byte key per train.
+
+`cbtc zone` and `cbtc trains` (and each real board's train_config.py) read the same file: a command is accepted only
+with the key of the train it is addressed to. Keep the file private.
+"""
+
+import json
+import os
+
+from ..errors import ConfigError
+from ..live import new_keys, parse_ids
+
+
+def register(sub):
+    p = sub.add_parser("keys", help="make per-train authentication keys", description=__doc__)
+    keys_sub = p.add_subparsers(dest="keys_command", metavar="ACTION")
+    keys_sub.required = True
+    new = keys_sub.add_parser("new", help="write a new keys file", description=__doc__)
+    new.add_argument("--trains", required=True, metavar="IDS", help="train ids, e.g. A,B")
+    new.add_argument("--out", required=True, metavar="FILE", help="keys file to write (e.g. keys.json)")
+    new.add_argument("--force", action="store_true", help="overwrite an existing file")
+    new.set_defaults(func=run_new)
+
+
+def run_new(args):
+    ids = parse_ids(args.trains)
+    if os.path.exists(args.out) and not args.force:
+        raise ConfigError(f"{args.out} exists: its keys may be on boards already; use --force to replace them")
+    fd = os.open(args.out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w") as fh:
+        json.dump(new_keys(ids), fh, indent=2, sort_keys=True)
+        fh.write("\n")
+    print(f"wrote keys of {len(ids)} trains to {args.out} (owner-only); pass it as --keys to cbtc zone and cbtc trains")
+    return 0

@@ -1,0 +1,282 @@
+"""End to end over a real Mosquitto: `cbtc zone` and `cbtc trains` as separate processes, and the faults.
+
+The trains process writes the trains' truth (positions, speeds, onboard mode, end of authority, rejected commands,
+collisions) to a JSON file every 0.2 s; the zone controller writes its figures at exit. Oracles: the truth-based
+collision count (as scenario.Recorder counts it), a train at rest (v = 0) with its head not past its end of
+authority (odometer <= eoa), the reject counters of the OnboardUnit and of the controller.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from cbtc.errors import BusError
+from cbtc.firmware_modules import wire
+from cbtc.paho_bus import PahoBus
+
+pytestmark = pytest.mark.mosquitto
+
+LAYOUT = "itb_square"
+SIM_SEED = 0
+EOA_TOLERANCE_MM = 5       # the odometer is read in whole mm
+STOP_WAIT_S = 3.0          # command ttl 0.8 s + braking from 0.6 m/s at 0.8 m/s^2 (0.75 s) + slack
+
+
+def cbtc(*args):
+    return [sys.executable, "-m", "cbtc.cli", *args]
+
+
+class Fleet:
+    """A zone controller process and a trains process on one broker, with their files in `folder`."""
+
+    def __init__(self, broker, folder):
+        self.broker = broker
+        self.folder = folder
+        self.status_path = os.path.join(folder, "trains-status.json")
+        self.trains_summary = os.path.join(folder, "trains-summary.json")
+        self.zones = []
+        self.trains = None
+
+    def start_zone(self, tag="zone"):
+        out = open(os.path.join(self.folder, tag + ".out"), "w")
+        err_path = os.path.join(self.folder, tag + ".err")
+        proc = subprocess.Popen(cbtc("zone", "--broker", self.broker.url, "--layout", LAYOUT, "--trains", "A,B",
+                                     "--sim-seed", str(SIM_SEED), "--summary-json",
+                                     os.path.join(self.folder, tag + "-summary.json")),
+                                stdout=out, stderr=open(err_path, "w"))
+        self.zones.append((proc, tag))
+        return proc
+
+    def start_trains(self, duration_s):
+        self.trains = subprocess.Popen(
+            cbtc("trains", "--broker", self.broker.url, "--layout", LAYOUT, "--count", "2", "--sim-seed",
+                 str(SIM_SEED), "--duration", str(duration_s), "--status-period", "0.2", "--status-json",
+                 self.status_path, "--summary-json", self.trains_summary, "--quiet"),
+            stdout=open(os.path.join(self.folder, "trains.out"), "w"),
+            stderr=open(os.path.join(self.folder, "trains.err"), "w"))
+
+    def status(self):
+        try:
+            with open(self.status_path) as fh:
+                return json.load(fh)
+        except (OSError, ValueError):
+            return None
+
+    def wait(self, predicate, timeout_s, what):
+        deadline = time.monotonic() + timeout_s
+        status = None
+        while time.monotonic() < deadline:
+            status = self.status()
+            if status is not None and predicate(status):
+                return status
+            time.sleep(0.1)
+        raise AssertionError(f"timed out after {timeout_s} s waiting for {what}; trains: {status}\n{self.logs()}")
+
+    def logs(self):
+        text = []
+        for name in sorted(os.listdir(self.folder)):
+            if name.endswith((".err", ".out")):
+                with open(os.path.join(self.folder, name)) as fh:
+                    text.append(f"--- {name}\n{fh.read()[-1500:]}")
+        return "\n".join(text)
+
+    def stop_zone(self, proc, tag):
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(15) == 0, self.logs()
+        with open(os.path.join(self.folder, tag + "-summary.json")) as fh:
+            return json.load(fh)
+
+    def close(self):
+        for proc, _tag in self.zones:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(5)
+        if self.trains is not None and self.trains.poll() is None:
+            self.trains.kill()
+            self.trains.wait(5)
+
+
+@pytest.fixture
+def fleet(mosquitto, tmp_path):
+    f = Fleet(mosquitto, str(tmp_path))
+    yield f
+    f.close()
+
+
+def moving(status, v_mps=0.2):
+    return any(t["v_mps"] > v_mps for t in status["trains"])
+
+
+def within_authority(train, before):
+    """The head has not passed the end of authority: odometer <= eoa, or, when the controller set the end of
+    authority behind a standing train (a station stop inside its window), it has not moved since `before`."""
+    return train["odo_mm"] <= max(train["eoa_mm"], before["odo_mm"]) + EOA_TOLERANCE_MM
+
+
+def at_rest_within_authority(status, before):
+    return all(t["v_mps"] == 0.0 and within_authority(t, b) for t, b in zip(status["trains"], before["trains"]))
+
+
+def braked_after_expiry(status, before):
+    """Every command expired: the OnboardUnit holds the train braked ('stop'), at rest within its authority."""
+    return at_rest_within_authority(status, before) and all(t["mode"] == "stop" for t in status["trains"])
+
+
+def watch_status(url):
+    seen = {}
+    bus = PahoBus(url, "watcher").start()
+    bus.subscribe("cbtc/#", lambda topic, payload: seen.__setitem__(topic, payload) if topic.endswith("/status")
+                  else None)
+    return bus, seen
+
+
+def test_paper_scenario_zone_and_trains_as_processes(fleet):
+    """Station stops and start positions of the paper scenario over the broker; Ctrl-C stops the trains first."""
+    zone = fleet.start_zone()
+    fleet.start_trains(duration_s=24)
+    before = fleet.wait(lambda s: s["t_s"] >= 19.0, 30, "19 s of running")
+    summary = fleet.stop_zone(zone, "zone")          # Ctrl-C: stop commands, then offline
+    assert fleet.trains.wait(20) == 0, fleet.logs()  # exit code 0: no collision
+    with open(fleet.trains_summary) as fh:
+        trains = json.load(fh)
+    assert trains["collisions"] == 0
+    for train, train_before in zip(trains["trains"], before["trains"]):
+        assert train["distance_m"] > 2.0                 # ran most of a side of the square and more
+        assert train["commands_rejected_onboard"] == 0
+        assert train["sid"] == summary["session_id"]
+        assert train["v_mps"] == 0.0 and within_authority(train, train_before)  # stopped at Ctrl-C
+    for train_id, row in summary["trains"].items():
+        assert row["station_stops"] >= 1, (train_id, row)
+        assert row["reports_rejected"] == 0
+    assert summary["invalid_reports"] == 0 and summary["unknown_reports"] == 0
+    watcher, seen = watch_status(fleet.broker.url)
+    try:
+        deadline = time.monotonic() + 3
+        while len(seen) < 3 and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        watcher.disconnect()
+    assert seen == {"cbtc/zc/zc1/status": b"offline", "cbtc/train/A/status": b"offline",
+                    "cbtc/train/B/status": b"offline"}
+
+
+def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
+    zone = fleet.start_zone()
+    fleet.start_trains(duration_s=30)
+    attacker = PahoBus(fleet.broker.url, "attacker").start()
+    commands, reports = [], []
+    attacker.subscribe("cbtc/train/A/cmd", lambda t, p: commands.append(p))
+    attacker.subscribe("cbtc/train/A/report", lambda t, p: reports.append(p))
+    try:
+        fleet.wait(lambda s: s["trains"][0]["cseq"] > 20, 20, "train A to take commands")
+        replay = commands[0]
+        body = json.loads(reports[-1][:reports[-1].rfind(b"#")])
+        real = json.loads(commands[-1][:commands[-1].rfind(b"#")])
+        before = fleet.status()["trains"][0]
+        forged_eoa_mm = body["odo_mm"] + 100000
+        attacker.publish("cbtc/train/A/cmd", wire.encode_command(
+            b"wrong key 16 byt", "A", real["seq"] + 1000, real["sid"], body["seq"], 600, forged_eoa_mm, 800, 600, 800))
+        attacker.publish("cbtc/train/A/cmd", replay)
+        attacker.publish("cbtc/train/A/report", reports[-1][:-4] + b"0000")                  # MAC broken
+        attacker.publish("cbtc/train/Z/report", wire.encode_report(
+            b"0123456789abcdef", "Z", 1, 1000, 0, 0, 0, "idle", -1, None, [], []))             # unknown train
+        after = fleet.wait(lambda s: s["trains"][0]["commands_rejected_onboard"] >= before[
+            "commands_rejected_onboard"] + 2, 5, "two rejections on board")
+        a = after["trains"][0]
+        assert a["eoa_mm"] < forged_eoa_mm - 50000
+        assert a["v_mps"] == 0.0 or within_authority(a, before)
+        assert a["sid"] == real["sid"]
+        assert a["last_reject"].startswith(("replayed command", "stale command"))
+        summary = fleet.stop_zone(zone, "zone")
+    finally:
+        attacker.disconnect()
+    assert summary["unknown_reports"] >= 1 and summary["invalid_reports"] >= 1
+    assert summary["trains"]["A"]["last_reject"].endswith("fails authentication (wrong key, or altered in transit)")
+    with open(os.path.join(fleet.folder, "zone.err")) as fh:
+        log = fh.read()
+    assert "unknown train 'Z'" in log and "dropped report of train A" in log
+
+
+def test_broker_killed_trains_stop_within_authority_then_resume(fleet):
+    fleet.start_zone()
+    fleet.start_trains(duration_s=30)
+    before = fleet.wait(moving, 15, "a train to move")
+    fleet.broker.kill()
+    killed_at = time.monotonic()
+    rest = fleet.wait(lambda s: braked_after_expiry(s, before), STOP_WAIT_S + 2,
+                      "every train braked within its authority")
+    assert time.monotonic() - killed_at < STOP_WAIT_S + 2
+    distance_m = {t["train"]: t["distance_m"] for t in rest["trains"]}
+    time.sleep(1.0)
+    still = fleet.status()
+    assert all(t["distance_m"] == distance_m[t["train"]] for t in still["trains"])   # and they stay there
+    fleet.broker.start()
+    resumed = fleet.wait(lambda s: any(t["distance_m"] > distance_m[t["train"]] + 0.2 for t in s["trains"]), 12,
+                         "a train to move again after the broker is back")
+    assert resumed["collisions"] == 0
+
+
+def test_zone_controller_killed_trains_stop_then_a_new_session_resumes(fleet):
+    first = fleet.start_zone("zone1")
+    fleet.start_trains(duration_s=30)
+    running = fleet.wait(moving, 15, "a train to move")
+    old_sid = running["trains"][0]["sid"]
+    first.kill()                                   # no goodbye: the trains only see commands stop coming
+    rest = fleet.wait(lambda s: braked_after_expiry(s, running), STOP_WAIT_S + 2,
+                      "every train braked within its authority")
+    distance_m = {t["train"]: t["distance_m"] for t in rest["trains"]}
+    fleet.start_zone("zone2")
+    resumed = fleet.wait(lambda s: any(t["distance_m"] > distance_m[t["train"]] + 0.2 for t in s["trains"]), 15,
+                         "a train to move under the new controller")
+    assert all(t["sid"] != old_sid for t in resumed["trains"])
+    fleet.wait(lambda s: s["t_s"] >= resumed["t_s"] + 2.0, 5, "two more seconds")
+    assert fleet.status()["collisions"] == 0
+
+
+def test_acl_only_the_controller_commands_a_train(secured_mosquitto):
+    broker, creds = secured_mosquitto(["A", "B"])
+    with pytest.raises(BusError, match="refused"):
+        PahoBus(broker.url, "anonymous").start(timeout_s=3)
+    with pytest.raises(BusError, match="refused"):
+        PahoBus(broker.url, "liar", username="train-A", password="guess").start(timeout_s=3)
+    zc = PahoBus(broker.url, "zc", username="zc", password=creds["zc"]).start()
+    a = PahoBus(broker.url, "train-A", username="train-A", password=creds["train-A"]).start()
+    b = PahoBus(broker.url, "train-B", username="train-B", password=creds["train-B"]).start()
+    try:
+        to_a, b_reads, zc_reports = [], [], []
+        a.subscribe("cbtc/train/A/cmd", lambda t, p: to_a.append(p))
+        b.subscribe("cbtc/train/A/cmd", lambda t, p: b_reads.append(p))         # not allowed to read it
+        zc.subscribe("cbtc/train/+/report", lambda t, p: zc_reports.append((t, p)))
+        time.sleep(0.3)
+        b.publish("cbtc/train/A/cmd", b"from B")                                # not allowed to write it
+        b.publish("cbtc/train/A/report", b"B speaking for A")                   # nor this
+        zc.publish("cbtc/train/A/cmd", b"from zc")
+        a.publish("cbtc/train/A/report", b"A itself")
+        deadline = time.monotonic() + 3
+        while (not to_a or not zc_reports) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(0.3)
+        assert to_a == [b"from zc"]
+        assert b_reads == []
+        assert zc_reports == [("cbtc/train/A/report", b"A itself")]
+    finally:
+        for bus in (zc, a, b):
+            bus.disconnect()
+
+
+def test_bench_latency_answers_every_report_within_a_cycle(mosquitto):
+    out = subprocess.run(cbtc("bench", "latency", "--broker", mosquitto.url, "--trains", "3", "--train-procs", "1",
+                              "--warmup", "1.5", "--duration", "2", "--json"),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    figures = json.loads(out.stdout)
+    assert figures["reports_published"] >= 3 * 10 * 2 - 3            # 3 trains at 10 Hz for 2 s
+    assert figures["reports_received"] == figures["reports_published"]  # loopback, QoS 0: nothing lost
+    assert figures["reports_answered_by_cycle"] >= figures["reports_published"] - 3
+    assert figures["cycle_wait_ms"]["max"] <= 100.0 + 20.0                # answered in the next 10 Hz cycle
+    assert 0.0 < figures["transport_rtt_ms"]["p50"] < 20.0                # loopback with TCP_NODELAY: milliseconds

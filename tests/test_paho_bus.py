@@ -1,0 +1,147 @@
+"""The paho-mqtt bus: URL and QoS rules, the inbox, and against a real Mosquitto: routing, TCP_NODELAY, retained
+status and last will, reconnect with resubscribe, refusal."""
+
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from cbtc.bus import BusClient
+from cbtc.errors import BusError, ConfigError
+from cbtc.paho_bus import Inbox, PahoBus, parse_broker_url, topic_qos
+
+
+def wait_for(predicate, timeout_s, what, inbox=None):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if inbox is not None:
+            inbox.drain()
+        if predicate():
+            return
+        time.sleep(0.01)
+    raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+
+
+def test_parse_broker_url():
+    assert parse_broker_url("mqtt://127.0.0.1:1884") == ("127.0.0.1", 1884, None, None)
+    assert parse_broker_url("broker.local") == ("broker.local", 1883, None, None)
+    assert parse_broker_url("mqtt://zc:s%40cret@h:2000") == ("h", 2000, "zc", "s@cret")
+    for bad in ("http://h:1", "mqtt://:1883", "mqtt://h:99999"):
+        with pytest.raises(ConfigError, match="broker URL"):
+            parse_broker_url(bad)
+
+
+def test_qos_per_topic():
+    assert topic_qos("cbtc/train/A/status") == 1
+    assert topic_qos("cbtc/zc/zc1/status") == 1
+    assert topic_qos("cbtc/train/A/report") == 0
+    assert topic_qos("cbtc/train/A/cmd") == 0
+    assert topic_qos("cbtc/train/+/report") == 0
+
+
+def test_inbox_runs_calls_in_order_and_survives_a_failing_one():
+    woken = []
+    inbox = Inbox(notify=lambda: woken.append(1))
+    seen = []
+    inbox.put(seen.append, 1)
+    inbox.put(lambda: 1 / 0)
+    inbox.put(seen.append, 2)
+    assert len(woken) == 3 and len(inbox) == 3
+    assert inbox.drain() == 3
+    assert seen == [1, 2]
+    assert inbox.errors == 1 and "ZeroDivisionError" in inbox.last_error
+
+
+def test_no_broker_is_a_bus_error_naming_the_address():
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]   # bound, not listening: connections are refused
+        bus = PahoBus(f"mqtt://127.0.0.1:{port}", "lonely")
+        with pytest.raises(BusError, match=f"127.0.0.1:{port}"):
+            bus.start(timeout_s=0.5)
+
+
+@pytest.mark.mosquitto
+def test_publish_subscribe_through_mosquitto_in_the_owner_thread(mosquitto):
+    inbox = Inbox()
+    sub = PahoBus(mosquitto.url, "sub", inbox=inbox).start()
+    pub = PahoBus(mosquitto.url, "pub").start()
+    try:
+        assert isinstance(sub, BusClient) and sub.connected
+        got = []
+        sub.subscribe("cbtc/train/+/report", lambda t, p: got.append((t, p, threading.get_ident())))
+        time.sleep(0.2)  # SUBACK
+        pub.publish("cbtc/train/A/report", b"one")
+        pub.publish("cbtc/train/B/cmd", b"not for this filter")
+        pub.publish("cbtc/train/B/report", b"two")
+        wait_for(lambda: len(got) == 2, 3.0, "two reports", inbox)
+        assert [(t, p) for t, p, _ in got] == [("cbtc/train/A/report", b"one"), ("cbtc/train/B/report", b"two")]
+        assert {ident for _, _, ident in got} == {threading.get_ident()}  # run by the drain, not paho's thread
+        sock = sub._client.socket()
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
+        sub.unsubscribe("cbtc/train/+/report")
+        time.sleep(0.2)
+        pub.publish("cbtc/train/C/report", b"three")
+        time.sleep(0.3)
+        inbox.drain()
+        assert len(got) == 2
+    finally:
+        sub.disconnect()
+        pub.disconnect()
+
+
+@pytest.mark.mosquitto
+def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto):
+    watcher = PahoBus(mosquitto.url, "watcher").start()
+    seen = []
+    watcher.subscribe("cbtc/train/+/status", lambda t, p: seen.append((t, p)))
+    try:
+        bus = PahoBus(mosquitto.url, "train-A", status_topic="cbtc/train/A/status").start()
+        wait_for(lambda: ("cbtc/train/A/status", b"online") in seen, 3.0, "online")
+        bus.disconnect()
+        wait_for(lambda: seen[-1] == ("cbtc/train/A/status", b"offline"), 3.0, "offline on a clean exit")
+        # an abrupt end (the process dies, no DISCONNECT): the broker publishes the last will
+        code = ("import os, sys, time; from cbtc.paho_bus import PahoBus; "
+                f"PahoBus('{mosquitto.url}', 'train-B', status_topic='cbtc/train/B/status').start(); "
+                "time.sleep(0.3); os._exit(0)")
+        subprocess.run([sys.executable, "-c", code], check=True, timeout=20)
+        wait_for(lambda: seen[-1] == ("cbtc/train/B/status", b"offline"), 3.0, "the will of B")
+        assert ("cbtc/train/B/status", b"online") in seen
+        # retained: a late subscriber learns both at once
+        late = PahoBus(mosquitto.url, "late").start()
+        retained = []
+        late.subscribe("cbtc/train/+/status", lambda t, p: retained.append((t, p)))
+        wait_for(lambda: len(retained) == 2, 3.0, "two retained statuses")
+        assert sorted(retained) == [("cbtc/train/A/status", b"offline"), ("cbtc/train/B/status", b"offline")]
+        late.disconnect()
+    finally:
+        watcher.disconnect()
+
+
+@pytest.mark.mosquitto
+def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
+    sub = PahoBus(mosquitto.url, "sub", reconnect_max_s=0.5).start()
+    connects = []
+    sub.on_connect = connects.append
+    got = []
+    sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
+    try:
+        mosquitto.kill()
+        wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed")
+        sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
+        assert sub.dropped == 1
+        mosquitto.start()
+        wait_for(lambda: sub.connected, 10.0, "reconnect")
+        assert connects == [sub] and sub.losses == 1 and sub.connects == 2
+        pub = PahoBus(mosquitto.url, "pub").start()
+        deadline = time.monotonic() + 5.0
+        while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
+            pub.publish("cbtc/train/A/cmd", b"after restart")
+            time.sleep(0.1)
+        pub.disconnect()
+        assert got and got[0] == b"after restart"
+    finally:
+        sub.disconnect()
