@@ -55,6 +55,7 @@ class TrainState:
         self.stop_overruns = 0
         self.departure = None        # set by the policy during departure control
         self.restarts = 0
+        self.answered_s = None       # controller time of the last command sent to this train
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
         self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
         self.gap_alarms = 0
@@ -154,7 +155,7 @@ class ZoneController:
         if report.get("rng") is not None:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
-            self._answer_follower(state, recv_s)
+            self._answer(state, recv_s)
 
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
@@ -164,11 +165,14 @@ class ZoneController:
         return sorted(found, key=lambda st: st.estimator.estimate(st.report_t_s).s_m)
 
     def cycle(self, now_s: float):
-        """Compute and publish a command for every train that has reported."""
+        """Compute and publish a command for every train that has reported. In event-driven mode a train answered
+        since the previous cycle is skipped: the cycle only covers trains whose reports did not arrive."""
         self.cycles += 1
         located = self.located()
         all_located = len(located) == len(self.trains)
         for i, state in enumerate(located):
+            if self.event_driven and state.answered_s is not None and now_s - state.answered_s < self.cycle_s:
+                continue
             leader = located[(i + 1) % len(located)] if len(located) > 1 else None
             self._update(state, leader, all_located, now_s)
 
@@ -181,15 +185,19 @@ class ZoneController:
             v_cap_mps = 0.0
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
         self._command(state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+        state.answered_s = now_s
 
-    def _answer_follower(self, leader_state, now_s):
-        """Event-driven: fresh data of a train extends its follower's authority at once, not at the next cycle."""
+    def _answer(self, state, now_s):
+        """Event-driven: a fresh report is answered at once, and it extends its follower's authority at once too."""
         located = self.located()
-        if len(located) != len(self.trains) or len(located) < 2:
+        if state not in located:
             return
-        i = located.index(leader_state)
-        follower = located[i - 1]
-        self._update(follower, leader_state, True, now_s)
+        all_located = len(located) == len(self.trains)
+        i = located.index(state)
+        leader = located[(i + 1) % len(located)] if len(located) > 1 else None
+        self._update(state, leader, all_located, now_s)
+        if all_located and len(located) > 1:
+            self._update(located[i - 1], state, True, now_s)
 
     def _station_stop(self, state, distance_m, now_s):
         """Fold the next scheduled stop into the authority; run the dwell clock."""

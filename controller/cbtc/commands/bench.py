@@ -8,7 +8,8 @@ seq as `rseq`), and it also answers a report at once by extending the authority 
 
   transport_rtt    report published -> received by the controller, plus command published -> received by the train
                    (the two trips through the broker and both MQTT stacks, the cycle wait left out)
-  cycle_wait       report received -> command for that report published (waiting for the cycle, plus compute)
+  answer_wait      report received -> command for that report published (compute; plus the wait for a cycle when
+                   the controller is not event-driven)
   report_to_cmd    report published -> command for that report received by the train (the sum: what a train sees)
   event_answer     report of a train published -> the command it triggered for the train behind received
   cycle_compute    one controller cycle (all trains), on_report_compute: handling one report
@@ -156,7 +157,7 @@ def figures(zc: ZcProbe, report_pub: dict, cmd_recv: dict, t0: float, t1: float)
     answered = set()
     for (train_id, cseq), (t_pub, rseq, trigger) in zc.cmd_pub.items():
         t_recv = cmd_recv.get((train_id, cseq))
-        if trigger is not None:
+        if trigger is not None and trigger != (train_id, rseq):
             if t_recv is not None and t0 <= report_pub.get(trigger, -1.0) <= t1:
                 event.append(t_recv - report_pub[trigger])
             continue
@@ -174,11 +175,11 @@ def figures(zc: ZcProbe, report_pub: dict, cmd_recv: dict, t0: float, t1: float)
     published = [k for k, t in report_pub.items() if t0 <= t <= t1]
     return {
         "transport_rtt_ms": _stats(transport), "uplink_ms": _stats(up), "downlink_ms": _stats(down),
-        "cycle_wait_ms": _stats(wait), "report_to_cmd_ms": _stats(total), "event_answer_ms": _stats(event),
+        "answer_wait_ms": _stats(wait), "report_to_cmd_ms": _stats(total), "event_answer_ms": _stats(event),
         "cycle_compute_ms": _stats([c for t, c in zc.cycles if t0 <= t <= t1]),
         "on_report_compute_ms": _stats([c for t, c in zc.on_report if t0 <= t <= t1]),
         "reports_published": len(published), "reports_received": sum(1 for k in published if k in zc.report_recv),
-        "reports_answered_by_cycle": len(answered),
+        "reports_answered": len(answered),
     }
 
 
@@ -308,7 +309,7 @@ def _print(f):
     rows = [("transport_rtt_ms", "transport round trip (uplink + downlink)"),
             ("uplink_ms", "  report published -> controller handles it"),
             ("downlink_ms", "  command published -> train handles it"),
-            ("cycle_wait_ms", "controller: report received -> its command published"),
+            ("answer_wait_ms", "controller: report received -> its command published"),
             ("report_to_cmd_ms", "report published -> its command received"),
             ("event_answer_ms", "report -> triggered command to the train behind"),
             ("cycle_compute_ms", "controller cycle compute"),
@@ -318,5 +319,5 @@ def _print(f):
         p50 = "       -" if s["p50"] is None else f"{s['p50']:8.3f}"
         p99 = "       -" if s["p99"] is None else f"{s['p99']:8.3f}"
         print(f"  {label:52s} p50 {p50} ms  p99 {p99} ms  (n={s['n']})")
-    print(f"  reports {f['reports_received']}/{f['reports_published']} received, {f['reports_answered_by_cycle']} "
-          f"answered by a cycle; trains moving: {f['moving_trains']}/{f['trains']}")
+    print(f"  reports {f['reports_received']}/{f['reports_published']} received, {f['reports_answered']} "
+          f"answered; trains moving: {f['moving_trains']}/{f['trains']}")
