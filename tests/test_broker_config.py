@@ -72,7 +72,7 @@ def test_cli_and_tool_write_the_config(tmp_path, capsys):
     assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli"), "--port", "1884"]) == 0
     assert "listener 1884 127.0.0.1" in (tmp_path / "cli" / "mosquitto.conf").read_text()
     assert main(["broker", "config", "--trains", "A,,A", "--out", str(tmp_path / "bad")]) == 2
-    assert "appears twice" in capsys.readouterr().err
+    assert "duplicate train ids" in capsys.readouterr().err
     out = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "make_broker_config.py"), "--trains", "T1",
                           "--out", str(tmp_path / "tool")], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr

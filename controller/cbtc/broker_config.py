@@ -89,7 +89,7 @@ def write_config(folder: str, train_ids, port: int = 1883, host: str = "127.0.0.
 
     `credentials` {user: password} keeps given passwords; missing users get random ones. The files are readable by
     all (Mosquitto started as root reads them as user `mosquitto`, see `config_text`) except credentials.json."""
-    train_ids = [wire.check_train_id(t) for t in _checked_ids(train_ids)]
+    train_ids = checked_train_ids(train_ids, "broker config")
     if not 0 < int(port) < 65536:
         raise ConfigError(f"broker config: port {port} is not in 1-65535")
     users = [ZC_USER] + [train_user(t) for t in train_ids]
@@ -105,17 +105,18 @@ def write_config(folder: str, train_ids, port: int = 1883, host: str = "127.0.0.
     return paths
 
 
-def _checked_ids(train_ids):
+def checked_train_ids(train_ids, context):
+    """The ids as a list, each a valid train id, none twice; ConfigError prefixed by `context` otherwise."""
     ids = list(train_ids)
     if not ids:
-        raise ConfigError("broker config: no trains given: pass --trains A,B")
+        raise ConfigError(f"{context}: no trains given: pass --trains A,B")
     if len(set(ids)) != len(ids):
-        raise ConfigError(f"broker config: duplicate train ids in {ids}")
+        raise ConfigError(f"{context}: duplicate train ids in {ids}")
     for train_id in ids:
         try:
             wire.check_train_id(train_id)
         except wire.WireError as exc:
-            raise ConfigError(f"broker config: {exc.reason}") from None
+            raise ConfigError(f"{context}: {exc.reason}") from None
     return ids
 
 

@@ -150,17 +150,9 @@ def credentials(user: str, username: str = None, password: str = None, credentia
 
 def parse_ids(text: str) -> list:
     """'A,B' -> ['A', 'B'] (each a valid train id, no duplicates)."""
-    ids = [t.strip() for t in text.split(",") if t.strip()]
-    if not ids:
-        raise ConfigError(f"--trains {text!r}: give train ids separated by commas, e.g. A,B")
-    if len(set(ids)) != len(ids):
-        raise ConfigError(f"--trains {text!r}: a train id appears twice")
-    for train_id in ids:
-        try:
-            wire.check_train_id(train_id)
-        except wire.WireError as exc:
-            raise ConfigError(f"--trains: {exc.reason}") from None
-    return ids
+    from .broker_config import checked_train_ids
+
+    return checked_train_ids([t.strip() for t in text.split(",") if t.strip()], f"--trains {text!r}")
 
 
 def fleet_config(layout, train_ids=None, count: int = None, scenario: str = "auto", seed: int = 0, **overrides):
