@@ -53,7 +53,6 @@ class TrainState:
         self.reports_rejected = 0
         self.last_reject = ""
         self.stop_overruns = 0
-        self.departure = None        # set by the policy during departure control
         self.restarts = 0
         self.answered_s = None       # controller time of the last command sent to this train
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
