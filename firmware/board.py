@@ -3,69 +3,60 @@
 HSPI is fixed in silicon to GPIO14 (SCK), GPIO12 (MISO), GPIO13 (MOSI), so the MFRC522 takes D5/D6/D7 and its chip
 select D8; the encoder moves off D5 to D4 (GPIO2: it has the IRQ and the pull-up an open-collector sensor needs).
 The ESP8266's only receiving UART is UART0, shared with the USB REPL: the IPS receiver gets it after boot, when
-the REPL is detached (see `detach_repl`). Holding the FLASH button (D3, GPIO0) while the firmware starts keeps the REPL
+the REPL is detached (train.py). Holding the FLASH button (D3, GPIO0) while the firmware starts keeps the REPL
 and skips the train loop: press it just after releasing RESET (held during the reset itself, GPIO0 low selects the
 ROM's serial bootloader instead). The firmware also keeps the REPL for a grace period after boot, which is how
 `cbtc flash` reaches a board whose UART0 belongs to the IPS.
-Nothing runs at import: main.py calls these functions.
+Nothing runs at import: the boot (startup.py) calls make_drivers() once.
 """
 
 import gc
 
-ENCODER_A = 2        # D4  encoder output (open collector, on-board pull-up); strapping pin: must be high at boot
-ENCODER_B = None     # no pin left for a second channel: direction comes from the motor command
-MOTOR_IN1 = 5        # D1  H-bridge IN1 (forward PWM)
-MOTOR_IN2 = 4        # D2  H-bridge IN2 (reverse PWM)
-MOTOR_PWM_HZ = 1000  # PWM frequency (Hz)
-RFID_SPI = 1         # HSPI: SCK GPIO14 (D5), MISO GPIO12 (D6), MOSI GPIO13 (D7)
-RFID_SPI_HZ = 1000000
-RFID_CS = 15         # D8  chip select (the board's pull-down keeps GPIO15 low at boot, as it must be)
-RFID_RST = 16        # D0  reset (output only; GPIO16 has no IRQ, which is fine here)
-IPS_UART = 0         # UART0 RX = GPIO3 (RX pin), after the REPL is detached
-IPS_BAUD = 115200    # set the hedgehog's UART speed to this in the Marvelmind dashboard
-MAINT_PIN = 0        # D3  FLASH button: held low as the firmware starts = maintenance, stay in the REPL
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(value):
+        return value
 
-
-def maintenance_requested():
-    """True when the FLASH button is held: the board stays in the REPL instead of running the train."""
-    import machine
-
-    return machine.Pin(MAINT_PIN, machine.Pin.IN, machine.Pin.PULL_UP).value() == 0
-
-
-def detach_repl():
-    """Give UART0 to the IPS: on the ESP8266 the REPL leaves it (it comes back after a reset)."""
-    import sys
-
-    if sys.platform == "esp8266":
-        import os
-
-        os.dupterm(None, 1)
+_ENCODER_A = const(2)         # D4  encoder output (open collector, on-board pull-up); strapping pin: must be high at boot
+_ENCODER_B = None             # no pin left for a second channel: direction comes from the motor command
+_MOTOR_IN1 = const(5)         # D1  H-bridge IN1 (forward PWM)
+_MOTOR_IN2 = const(4)         # D2  H-bridge IN2 (reverse PWM)
+_MOTOR_PWM_HZ = const(1000)   # PWM frequency (Hz)
+_RFID_SPI = const(1)          # HSPI: SCK GPIO14 (D5), MISO GPIO12 (D6), MOSI GPIO13 (D7)
+_RFID_SPI_HZ = const(1000000)
+_RFID_CS = const(15)          # D8  chip select (the board's pull-down keeps GPIO15 low at boot, as it must be)
+_RFID_RST = const(16)         # D0  reset (output only; GPIO16 has no IRQ, which is fine here)
+_IPS_UART = const(0)          # UART0 RX = GPIO3 (RX pin), after the REPL is detached
+_IPS_BAUD = const(115200)     # set the hedgehog's UART speed to this in the Marvelmind dashboard
+_MAINT_PIN = const(0)         # D3  FLASH button: held low as the firmware starts = maintenance, stay in the REPL
 
 
 def make_drivers():
-    """The board's drivers as a dict: encoder, ips, rfid, motor (motor braked)."""
+    """The board's drivers as a dict: encoder, ips, rfid, motor (motor braked), and maint: the FLASH button's pin
+    (reads 0 while held: maintenance, the board stays in the REPL)."""
     import machine
 
     gc.collect()
     from drivers.motor import Motor
 
-    motor = Motor(machine.PWM(machine.Pin(MOTOR_IN1), freq=MOTOR_PWM_HZ, duty=0),
-                  machine.PWM(machine.Pin(MOTOR_IN2), freq=MOTOR_PWM_HZ, duty=0))
+    motor = Motor(machine.PWM(machine.Pin(_MOTOR_IN1), freq=_MOTOR_PWM_HZ, duty=0),
+                  machine.PWM(machine.Pin(_MOTOR_IN2), freq=_MOTOR_PWM_HZ, duty=0))
     motor.brake()
     gc.collect()
     from drivers.encoder import Encoder
 
-    pin_b = None if ENCODER_B is None else machine.Pin(ENCODER_B, machine.Pin.IN, machine.Pin.PULL_UP)
-    encoder = Encoder(machine.Pin(ENCODER_A, machine.Pin.IN, machine.Pin.PULL_UP), pin_b)
+    pin_b = None if _ENCODER_B is None else machine.Pin(_ENCODER_B, machine.Pin.IN, machine.Pin.PULL_UP)
+    encoder = Encoder(machine.Pin(_ENCODER_A, machine.Pin.IN, machine.Pin.PULL_UP), pin_b)
     gc.collect()
     from drivers.mfrc522 import Mfrc522
 
-    rfid = Mfrc522(machine.SPI(RFID_SPI, baudrate=RFID_SPI_HZ, polarity=0, phase=0),
-                   machine.Pin(RFID_CS, machine.Pin.OUT, value=1), machine.Pin(RFID_RST, machine.Pin.OUT, value=0))
+    rfid = Mfrc522(machine.SPI(_RFID_SPI, baudrate=_RFID_SPI_HZ, polarity=0, phase=0),
+                   machine.Pin(_RFID_CS, machine.Pin.OUT, value=1), machine.Pin(_RFID_RST, machine.Pin.OUT, value=0))
     gc.collect()
     from drivers.ips import IpsReceiver
 
-    ips = IpsReceiver(machine.UART(IPS_UART, IPS_BAUD, rxbuf=256))
+    ips = IpsReceiver(machine.UART(_IPS_UART, _IPS_BAUD, rxbuf=256))
     gc.collect()
-    return {"encoder": encoder, "ips": ips, "rfid": rfid, "motor": motor}
+    return {"encoder": encoder, "ips": ips, "rfid": rfid, "motor": motor,
+            "maint": machine.Pin(_MAINT_PIN, machine.Pin.IN, machine.Pin.PULL_UP)}

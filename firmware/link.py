@@ -24,15 +24,15 @@ class Link:
                  backoff_max_ms=8000):
         """`client`: an umqtt.simple.MQTTClient; `subscriptions`: topics to (re)subscribe after every connect;
         `errors`: the exception classes that mean the connection is gone; backoff in ms, doubling up to the max."""
-        self._client = client
-        self._status_topic = status_topic
-        self._subscriptions = subscriptions
-        self._errors = errors
-        self._backoff_min_ms = backoff_min_ms
-        self._backoff_max_ms = backoff_max_ms
+        self.client = client
+        self.status_topic = status_topic
+        self.subscriptions = subscriptions
+        self.errors = errors
+        self.backoff_min_ms = backoff_min_ms
+        self.backoff_max_ms = backoff_max_ms
         self._backoff_ms = backoff_min_ms
         self._next_try_ms = 0
-        self._now_ms = 0
+        self.now_ms = 0
         self._delivered = False
         self.on_message = None      # callable(topic: str, payload: bytes, now_ms)
         self.connected = False
@@ -48,33 +48,33 @@ class Link:
 
     def connect(self, now_ms):
         """One attempt: connect, TCP_NODELAY, `online` retained, subscribe. True on success."""
-        self._now_ms = now_ms
+        self.now_ms = now_ms
         try:
-            self._client.connect()
-            self._client.sock.setsockopt(_IPPROTO_TCP, _TCP_NODELAY, 1)
-            self._client.publish(self._status_topic, ONLINE, True, 1)
-            for topic in self._subscriptions:
-                self._client.subscribe(topic)
-        except self._errors as exc:
+            self.client.connect()
+            self.client.sock.setsockopt(_IPPROTO_TCP, _TCP_NODELAY, 1)
+            self.client.publish(self.status_topic, ONLINE, True, 1)
+            for topic in self.subscriptions:
+                self.client.subscribe(topic)
+        except self.errors as exc:
             self._lost(now_ms, exc)
             return False
         self.connected = True
         self.connects += 1
-        self._backoff_ms = self._backoff_min_ms
+        self._backoff_ms = self.backoff_min_ms
         return True
 
     def poll(self, now_ms):
         """Take waiting messages (never blocks); each goes to on_message with `now_ms`."""
         if not self.connected:
             return
-        self._now_ms = now_ms
+        self.now_ms = now_ms
         try:
             for _ in range(_MAX_MESSAGES):
                 self._delivered = False
-                self._client.check_msg()
+                self.client.check_msg()
                 if not self._delivered:
                     break
-        except self._errors as exc:
+        except self.errors as exc:
             self._lost(now_ms, exc)
 
     def publish(self, topic, payload):
@@ -82,27 +82,27 @@ class Link:
         if not self.connected:
             return False
         try:
-            self._client.publish(topic, payload)
-        except self._errors as exc:
-            self._lost(self._now_ms, exc)
+            self.client.publish(topic, payload)
+        except self.errors as exc:
+            self._lost(self.now_ms, exc)
             return False
         return True
 
     def _deliver(self, topic, payload):
         self._delivered = True
         if self.on_message is not None:
-            self.on_message(topic.decode(), payload, self._now_ms)
+            self.on_message(topic.decode(), payload, self.now_ms)
 
     def _lost(self, now_ms, exc):
         if self.connected:
             self.losses += 1
         self.connected = False
         self.last_error = repr(exc)
-        sock = self._client.sock
+        sock = self.client.sock
         if sock is not None:
             try:
                 sock.close()
             except OSError:
                 pass
         self._next_try_ms = now_ms + self._backoff_ms
-        self._backoff_ms = min(self._backoff_ms * 2, self._backoff_max_ms)
+        self._backoff_ms = min(self._backoff_ms * 2, self.backoff_max_ms)

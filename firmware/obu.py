@@ -20,6 +20,12 @@ from math import sqrt
 
 import wire
 
+try:
+    from micropython import const
+except ImportError:  # CPython
+    def const(value):
+        return value
+
 DEFAULTS = {
     "counts_per_m": 1000,     # encoder counts per metre of travel (calibrate: cbtc calibrate encoder)
     "report_ms": 100,         # report period (ms)
@@ -42,11 +48,25 @@ DEFAULTS = {
     "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
 }
 
-_HISTORY = 12          # reports remembered for matching commands to the report they are based on
-_SPEED_RING = 8        # encoder snapshots kept for the speed estimate
+_HISTORY = const(12)     # reports remembered for matching commands to the report they are based on
+_SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
 
 
 class OnboardUnit:
+    # Fields that keep these starting values until something rare happens (a rejected command, a failed sensor, a
+    # ranging driver, a guard trip) live on the class: an instance pays for them only once it changes them, which
+    # keeps a board's OnboardUnit small. All are immutable, so instances never share state through them.
+    ranging = None
+    rejected = 0
+    last_reject = ""
+    sensor_errors = 0
+    last_sensor_error = ""
+    gap_mm = None            # newest measured gap to the train ahead (mm) and its board time (ms)
+    gap_t_ms = 0
+    _rng_report = None
+    guard_on = False
+    guard_trips = 0
+
     def __init__(self, train_id, key, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
         self._key = key
@@ -54,10 +74,12 @@ class OnboardUnit:
         self.ips = ips
         self.rfid = rfid
         self.motor = motor
-        self.ranging = ranging
+        if ranging is not None:
+            self.ranging = ranging
         self._publish = publish
-        cfg = dict(DEFAULTS)
+        cfg = DEFAULTS   # read-only here: shared as it is when nothing is overridden (a board's heap is small)
         if config:
+            cfg = dict(DEFAULTS)
             for name in config:
                 if name not in DEFAULTS:
                     raise ValueError("unknown OnboardUnit config key %r; known: %s" % (name, ", ".join(sorted(DEFAULTS))))
@@ -79,8 +101,6 @@ class OnboardUnit:
         self.cmd = None
         self.cmd_expiry_ms = 0
         self.eoa_mm = 0               # no authority at start: the end of authority is where the train stands
-        self.rejected = 0
-        self.last_reject = ""
         self._rejected_since_report = False
         # control
         self.mode = "idle"
@@ -93,19 +113,10 @@ class OnboardUnit:
         self._next_report_ms = 0
         self._sent_seq = [-1] * _HISTORY
         self._sent_t = [0] * _HISTORY
-        self._sent_odo = [0] * _HISTORY
         self._ips_fix = None
         self._tags = []
         self.faults = []
-        self.sensor_errors = 0
-        self.last_sensor_error = ""
         self.link_ok = True
-        # collision guard
-        self.gap_mm = None            # newest measured gap to the train ahead (mm) and its board time (ms)
-        self.gap_t_ms = 0
-        self._rng_report = None
-        self.guard_on = False
-        self.guard_trips = 0
 
     # --- commands ------------------------------------------------------------------------------------------
 
@@ -114,21 +125,23 @@ class OnboardUnit:
         if topic != self._cmd_topic:
             return
         try:
-            self._accept(wire.decode_command(self._key, topic, payload), now_ms)
+            cmd = wire.decode_command(self._key, topic, payload)
+            if cmd["sid"] == self.sid and cmd["seq"] <= self.cseq:
+                raise wire.WireError("replayed command: seq %d of session %d is not after %d"
+                                     % (cmd["seq"], cmd["sid"], self.cseq))
+            slot = cmd["rseq"] % _HISTORY
+            if self._sent_seq[slot] != cmd["rseq"]:
+                raise wire.WireError("stale command: it is based on report %d, which is not among our last %d"
+                                     % (cmd["rseq"], _HISTORY))
+            age_ms = now_ms - self._sent_t[slot]
+            if age_ms > self.cfg["max_data_age_ms"]:
+                raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)"
+                                     % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
         except wire.WireError as exc:
             self.rejected += 1
             self.last_reject = exc.reason
             self._rejected_since_report = True
-
-    def _accept(self, cmd, now_ms):
-        if cmd["sid"] == self.sid and cmd["seq"] <= self.cseq:
-            raise wire.WireError("replayed command: seq %d of session %d is not after %d" % (cmd["seq"], cmd["sid"], self.cseq))
-        slot = cmd["rseq"] % _HISTORY
-        if self._sent_seq[slot] != cmd["rseq"]:
-            raise wire.WireError("stale command: it is based on report %d, which is not among our last %d" % (cmd["rseq"], _HISTORY))
-        age_ms = now_ms - self._sent_t[slot]
-        if age_ms > self.cfg["max_data_age_ms"]:
-            raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)" % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
+            return
         self.sid = cmd["sid"]
         self.cseq = cmd["seq"]
         self.cmd = cmd
@@ -155,16 +168,14 @@ class OnboardUnit:
         self.last_sensor_error = "%s: %s" % (name, exc)
 
     def _sample(self, now_ms):
+        # a failed sensor is counted and named, never allowed to stop the loop
         try:
-            count = self.encoder.count()
-            odo_mm = count * 1000 // self.cfg["counts_per_m"]
-        except Exception as exc:  # a failed sensor is reported, never allowed to stop the loop
+            odo_mm = self.encoder.count() * 1000 // self.cfg["counts_per_m"]
+            if odo_mm != self.odo_mm:
+                self._last_move_ms = now_ms
+            self.odo_mm = odo_mm
+        except Exception as exc:
             self._sensor_failed("encoder", exc)
-            odo_mm = self.odo_mm
-        if odo_mm != self.odo_mm:
-            self._last_move_ms = now_ms
-        self.odo_mm = odo_mm
-        self._update_speed(now_ms)
         try:
             fix = self.ips.poll(now_ms)
             if fix is not None:
@@ -186,15 +197,13 @@ class OnboardUnit:
                     self._rng_report = [now_ms, self.gap_mm]
             except Exception as exc:
                 self._sensor_failed("ranging", exc)
-
-    def _update_speed(self, now_ms):
+        # speed: odometer change over the oldest snapshot inside the window (at least the previous one)
         i = self._ring_i
         self._ring_t[i] = now_ms
         self._ring_odo[i] = self.odo_mm
         self._ring_i = (i + 1) % _SPEED_RING
         if self._ring_n < _SPEED_RING:
             self._ring_n += 1
-        # oldest snapshot inside the window (at least the previous one)
         best = -1
         for k in range(1, self._ring_n):
             j = (i - k) % _SPEED_RING
@@ -220,22 +229,19 @@ class OnboardUnit:
         v = max(0, self.v_mmps)
         return v * v / (2.0 * cfg["emergency_dec_mmps2"]) + v * cfg["reaction_ms"] / 1000.0 + cfg["guard_margin_mm"]
 
-    def guard_tripped(self, now_ms):
-        """True when a fresh measured gap is below `guard_limit_mm`."""
-        if self.gap_mm is None or now_ms - self.gap_t_ms > self.cfg["guard_fresh_ms"]:
-            return False
-        return self.gap_mm < self.guard_limit_mm()
-
     def _control(self, now_ms, dt_s):
         cfg = self.cfg
-        if self.guard_tripped(now_ms):
+        # collision guard: a fresh measured gap below guard_limit_mm brakes whatever the commands say
+        if (self.gap_mm is not None and now_ms - self.gap_t_ms <= cfg["guard_fresh_ms"]
+                and self.gap_mm < self.guard_limit_mm()):
             if not self.guard_on:
                 self.guard_trips += 1
             self.guard_on = True
             self.mode = "trip"
             self._brake()
             return
-        self.guard_on = False
+        if self.guard_on:
+            self.guard_on = False
         if self.command_valid(now_ms):
             cmd = self.cmd
             v_cap = min(cmd["v_mmps"], cfg["v_max_mmps"])
@@ -286,7 +292,7 @@ class OnboardUnit:
 
     # --- reporting ----------------------------------------------------------------------------------------------
 
-    def _faults(self, now_ms):
+    def _report(self, now_ms):
         faults = []
         last_fix = getattr(self.ips, "last_fix_ms", None)
         if last_fix is None or now_ms - last_fix > self.cfg["ips_silent_ms"]:
@@ -305,20 +311,17 @@ class OnboardUnit:
             faults.append("broker_lost")
         if self.guard_on:
             faults.append("guard")
-        return faults
-
-    def _report(self, now_ms):
-        self.faults = self._faults(now_ms)
+        self.faults = faults
         seq = self.seq
         slot = seq % _HISTORY
         self._sent_seq[slot] = seq
         self._sent_t[slot] = now_ms
-        self._sent_odo[slot] = self.odo_mm
         payload = wire.encode_report(self._key, self.train_id, seq, now_ms, self.odo_mm, self.v_mmps, self.duty_pct,
                                      self.mode, self.cseq, self._ips_fix, self._tags, self.faults, self._rng_report)
         self.seq = seq + 1
         self._ips_fix = None
-        self._rng_report = None
+        if self._rng_report is not None:
+            self._rng_report = None
         self._tags = []
         self._rejected_since_report = False
         try:

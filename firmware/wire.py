@@ -11,32 +11,27 @@ Topics (train id `T`, zone `Z`):
   cbtc/zc/Z/status      controller's retained "online"/"offline" (last will)
 """
 
+import binascii
+import hashlib
 import json
 
 try:
-    import hashlib
-except ImportError:  # pragma: no cover - MicroPython ports without hashlib alias
-    import uhashlib as hashlib
+    from micropython import const
+except ImportError:  # CPython
+    def const(value):
+        return value
 
-try:
-    import binascii
-except ImportError:  # pragma: no cover
-    import ubinascii as binascii
-
-VERSION = 1
-MAC_BYTES = 16
-MAX_PAYLOAD = 1024
-MAX_TAGS = 4
-ID_CHARS = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-"
-ID_MAX_LEN = 16
-INT31 = 2147483647
-
-KIND_REPORT = "rep"
-KIND_COMMAND = "cmd"
+VERSION = const(1)
+MAX_TAGS = const(4)
+_MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
+_MAX_PAYLOAD = const(1024)    # longest payload accepted (bytes)
+_ID_MAX_LEN = const(16)       # longest train id (characters)
+INT31 = const(2147483647)     # largest sequence number, time or odometer value
 
 MODES = ("idle", "run", "stop", "trip")
 FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "cmd_timeout", "cmd_reject", "broker_lost",
           "guard")
+
 
 
 class WireError(ValueError):
@@ -71,15 +66,15 @@ def train_id_of(topic):
     parts = topic.split("/")
     if len(parts) != 4 or parts[0] != "cbtc" or parts[1] != "train":
         raise WireError("topic %r is not cbtc/train/<id>/<kind>" % topic)
-    check_train_id(parts[2])
-    return parts[2]
+    return check_train_id(parts[2])
 
 
 def check_train_id(train_id):
-    if not isinstance(train_id, str) or not (1 <= len(train_id) <= ID_MAX_LEN):
-        raise WireError("train id %r must be a string of 1-%d characters" % (train_id, ID_MAX_LEN))
+    """`train_id` itself if it is 1-16 of A-Z a-z 0-9 _ -, else WireError naming the problem."""
+    if not isinstance(train_id, str) or not 1 <= len(train_id) <= _ID_MAX_LEN:
+        raise WireError("train id %r must be a string of 1-%d characters" % (train_id, _ID_MAX_LEN))
     for ch in train_id:
-        if ch not in ID_CHARS:
+        if ch not in "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-":
             raise WireError("train id %r has %r: use letters, digits, '_' or '-'" % (train_id, ch))
     return train_id
 
@@ -88,85 +83,77 @@ def check_train_id(train_id):
 
 def hmac_sha256(key, msg):
     """HMAC-SHA256 (RFC 2104) from hashlib alone: MicroPython has no hmac module."""
-    block = 64
-    if len(key) > block:
+    if len(key) > 64:
         key = hashlib.sha256(key).digest()
-    key = key + b"\x00" * (block - len(key))
-    inner = hashlib.sha256(bytes(b ^ 0x36 for b in key))
+    pad = bytearray(64)          # the key padded to the 64-byte block, then XORed in place with ipad, then opad
+    pad[:len(key)] = key
+    for i in range(64):
+        pad[i] ^= 0x36
+    inner = hashlib.sha256(pad)
     inner.update(msg)
-    outer = hashlib.sha256(bytes(b ^ 0x5C for b in key))
+    for i in range(64):
+        pad[i] ^= 0x6A           # 0x36 ^ 0x6A == 0x5C: ipad becomes opad
+    outer = hashlib.sha256(pad)
     outer.update(inner.digest())
     return outer.digest()
 
 
-def _mac_hex(key, topic, body):
-    return binascii.hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:MAC_BYTES])
-
-
-def _same(a, b):
-    """Constant-time comparison of two byte strings."""
-    if len(a) != len(b):
-        return False
-    diff = 0
-    for i in range(len(a)):
-        diff |= a[i] ^ b[i]
-    return diff == 0
-
-
 def seal(key, topic, body):
     """Payload bytes for `body` (bytes) on `topic`, authenticated with `key` (bytes)."""
-    return body + b"#" + _mac_hex(key, topic, body)
+    return body + b"#" + binascii.hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:_MAC_BYTES])
 
 
 def open_sealed(key, topic, payload):
     """The body of an authenticated payload, or WireError if the payload is malformed or its MAC is wrong."""
     if not isinstance(payload, (bytes, bytearray)):
         raise WireError("payload on %s is %s, not bytes" % (topic, type(payload).__name__))
-    if len(payload) > MAX_PAYLOAD:
-        raise WireError("payload on %s is %d bytes, over the %d-byte limit" % (topic, len(payload), MAX_PAYLOAD))
-    cut = bytes(payload).rfind(b"#")
+    if len(payload) > _MAX_PAYLOAD:
+        raise WireError("payload on %s is %d bytes, over the %d-byte limit" % (topic, len(payload), _MAX_PAYLOAD))
+    payload = bytes(payload)
+    cut = payload.rfind(b"#")
     if cut < 0:
         raise WireError("payload on %s has no '#<mac>' authentication suffix" % topic)
-    body = bytes(payload[:cut])
-    if not _same(bytes(payload[cut + 1:]), _mac_hex(key, topic, body)):
+    body = payload[:cut]
+    sealed = seal(key, topic, body)
+    diff = len(sealed) ^ len(payload)   # constant-time comparison of the received MAC with ours
+    if not diff:
+        for i in range(cut, len(sealed)):
+            diff |= sealed[i] ^ payload[i]
+    if diff:
         raise WireError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     return body
 
 
-# --- field validation -----------------------------------------------------------------------------------------
+# --- validation -----------------------------------------------------------------------------------------------
 
-def _parse(body, topic):
+def check_ints(values, specs, topic, field=None):
+    """Check integers against `specs`, flat (name, lo, hi) triples: the message's named fields (`field` None), or
+    the elements of the list in message field `field`, in order."""
+    for i in range(0, len(specs), 3):
+        name = specs[i]
+        value = values.get(name) if field is None else values[i // 3]
+        if not isinstance(value, int) or isinstance(value, bool) or not specs[i + 1] <= value <= specs[i + 2]:
+            raise WireError("field %r on %s must be an integer in [%d, %d], got %r"
+                            % (name if field is None else field + "." + name, topic, specs[i + 1], specs[i + 2],
+                               value))
+
+
+def _decode(key, topic, payload, kind, specs):
+    """The validated message dict of a sealed payload of `kind` ("rep" or "cmd") with header v, k, id and the
+    integer fields of `specs` (see check_ints)."""
+    train_id = train_id_of(topic)
+    body = open_sealed(key, topic, payload)
     try:
         msg = json.loads(body)
     except ValueError:
         raise WireError("payload on %s is not JSON" % topic)
     if not isinstance(msg, dict):
         raise WireError("payload on %s is not a JSON object" % topic)
+    for field, word, want in (("v", "version", VERSION), ("k", "kind", kind), ("id", "train", train_id)):
+        if msg.get(field) != want:
+            raise WireError("message on %s names %s %r; this side expects %r" % (topic, word, msg.get(field), want))
+    check_ints(msg, specs, topic)
     return msg
-
-
-def _int(msg, name, lo, hi, topic):
-    value = msg.get(name)
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise WireError("field %r on %s must be an integer, got %r" % (name, topic, value))
-    if value < lo or value > hi:
-        raise WireError("field %r on %s is %d, outside [%d, %d]" % (name, topic, value, lo, hi))
-    return value
-
-
-def _header(msg, kind, topic, train_id):
-    version = msg.get("v")
-    if version != VERSION:
-        raise WireError("message on %s has version %r; this side speaks version %d" % (topic, version, VERSION))
-    if msg.get("k") != kind:
-        raise WireError("message on %s has kind %r, expected %r" % (topic, msg.get("k"), kind))
-    if msg.get("id") != train_id:
-        raise WireError("message on %s names train %r, but the topic names %r" % (topic, msg.get("id"), train_id))
-    _int(msg, "seq", 0, INT31, topic)
-
-
-def _dump(msg):
-    return json.dumps(msg).replace(" ", "").encode()
 
 
 # --- reports ---------------------------------------------------------------------------------------------------
@@ -181,50 +168,20 @@ def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq
     rng: None or [t_ms, gap_mm], the newest gap to the train ahead measured by the onboard ranging since the last
     report (board clock; gap from this head to the leader's tail, mm).
     """
-    msg = {"v": VERSION, "k": KIND_REPORT, "id": train_id, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
+    msg = {"v": VERSION, "k": "rep", "id": train_id, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
            "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "ips": ips, "tags": tags, "flt": faults}
     if rng is not None:
         msg["rng"] = rng   # absent (read as null) on boards without ranging
-    return seal(key, topic_report(train_id), _dump(msg))
+    return seal(key, topic_report(train_id), json.dumps(msg).replace(" ", "").encode())
 
 
 def decode_report(key, topic, payload):
     """The report dict of a sealed payload, validated; WireError with the reason otherwise."""
-    train_id = train_id_of(topic)
-    msg = _parse(open_sealed(key, topic, payload), topic)
-    _header(msg, KIND_REPORT, topic, train_id)
-    _int(msg, "t_ms", 0, INT31, topic)
-    _int(msg, "odo_mm", -INT31, INT31, topic)
-    _int(msg, "v_mmps", -20000, 20000, topic)
-    _int(msg, "duty", -100, 100, topic)
-    _int(msg, "cseq", -1, INT31, topic)
-    if msg.get("mode") not in MODES:
-        raise WireError("field 'mode' on %s is %r, not one of %s" % (topic, msg.get("mode"), ", ".join(MODES)))
-    ips = msg.get("ips")
-    if ips is not None:
-        if not isinstance(ips, list) or len(ips) != 3:
-            raise WireError("field 'ips' on %s must be null or [t_ms, x_mm, y_mm]" % topic)
-        _int({"ips.t_ms": ips[0]}, "ips.t_ms", 0, INT31, topic)
-        _int({"ips.x_mm": ips[1]}, "ips.x_mm", -1000000, 1000000, topic)
-        _int({"ips.y_mm": ips[2]}, "ips.y_mm", -1000000, 1000000, topic)
-    tags = msg.get("tags")
-    if not isinstance(tags, list) or len(tags) > MAX_TAGS:
-        raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms]" % (topic, MAX_TAGS))
-    for tag in tags:
-        if (not isinstance(tag, list) or len(tag) != 3 or not isinstance(tag[0], str)
-                or not isinstance(tag[1], int) or not isinstance(tag[2], int)):
-            raise WireError("entry %r of 'tags' on %s must be [uid_hex, odo_mm, t_ms]" % (tag, topic))
-    rng = msg.get("rng")
-    if rng is not None:
-        if not isinstance(rng, list) or len(rng) != 2:
-            raise WireError("field 'rng' on %s must be null or [t_ms, gap_mm]" % topic)
-        _int({"rng.t_ms": rng[0]}, "rng.t_ms", 0, INT31, topic)
-        _int({"rng.gap_mm": rng[1]}, "rng.gap_mm", -100000, 1000000, topic)
-    msg["rng"] = rng
-    faults = msg.get("flt")
-    if not isinstance(faults, list) or any(f not in FAULTS for f in faults):
-        raise WireError("field 'flt' on %s must list fault names from %s" % (topic, ", ".join(FAULTS)))
-    return msg
+    from wire_report import check_report   # only the controller decodes reports: kept out of the board's heap
+
+    return check_report(_decode(key, topic, payload, "rep", (
+        "seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31, "v_mmps", -20000, 20000, "duty", -100, 100,
+        "cseq", -1, INT31)), topic)
 
 
 # --- commands --------------------------------------------------------------------------------------------------
@@ -237,21 +194,13 @@ def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mm
     value of the train's own odometer (mm) that its head must not pass; ttl_ms: validity, counted on the board's clock
     from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and service deceleration to use (mm/s^2).
     """
-    msg = {"v": VERSION, "k": KIND_COMMAND, "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
+    msg = {"v": VERSION, "k": "cmd", "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
            "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2}
-    return seal(key, topic_command(train_id), _dump(msg))
+    return seal(key, topic_command(train_id), json.dumps(msg).replace(" ", "").encode())
 
 
 def decode_command(key, topic, payload):
     """The command dict of a sealed payload, validated; WireError with the reason otherwise."""
-    train_id = train_id_of(topic)
-    msg = _parse(open_sealed(key, topic, payload), topic)
-    _header(msg, KIND_COMMAND, topic, train_id)
-    _int(msg, "sid", 0, INT31, topic)
-    _int(msg, "rseq", 0, INT31, topic)
-    _int(msg, "v_mmps", 0, 5000, topic)
-    _int(msg, "eoa_mm", -INT31, INT31, topic)
-    _int(msg, "ttl_ms", 1, 10000, topic)
-    _int(msg, "acc", 1, 10000, topic)
-    _int(msg, "dec", 1, 10000, topic)
-    return msg
+    return _decode(key, topic, payload, "cmd", ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31,
+                                                "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31, "ttl_ms", 1, 10000,
+                                                "acc", 1, 10000, "dec", 1, 10000))

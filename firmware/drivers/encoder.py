@@ -26,8 +26,8 @@ _QUAD = (0, -1, 1, 0,
 
 class Encoder:
     def __init__(self, pin_a, pin_b=None):
-        self._pin_a = pin_a
-        self._pin_b = pin_b
+        self.pin_a = pin_a
+        self.pin_b = pin_b
         self._count = 0
         self._level_a = pin_a.value()
         trigger = getattr(pin_a, "IRQ_RISING", _RISING) | getattr(pin_a, "IRQ_FALLING", _FALLING)
@@ -39,13 +39,13 @@ class Encoder:
             pin_b.irq(trigger=trigger, handler=self._quad_edge)
 
     def _edge(self, _pin):
-        level = self._pin_a.value()
+        level = self.pin_a.value()
         if level != self._level_a:
             self._level_a = level
             self._count += 1
 
     def _quad_edge(self, _pin):
-        state = (self._pin_a.value() << 1) | self._pin_b.value()
+        state = (self.pin_a.value() << 1) | self.pin_b.value()
         self._count += _QUAD[(self._state << 2) | state]
         self._state = state
 

@@ -44,7 +44,7 @@ def crc16_modbus(buf, start, end):
 
 class IpsReceiver:
     def __init__(self, uart):
-        self._uart = uart
+        self.uart = uart
         self._buf = bytearray(_BUF)
         self._len = 0
         self.frames_ok = 0       # valid position frames
@@ -56,10 +56,10 @@ class IpsReceiver:
     def poll(self, now_ms):
         """Read what is waiting and parse it; the newest fix since the last poll or None (see module doc)."""
         fix = None
-        waiting = self._uart.any()
+        waiting = self.uart.any()
         while waiting > 0:
             room = _BUF - self._len
-            data = self._uart.read(min(waiting, room, _CHUNK))
+            data = self.uart.read(min(waiting, room, _CHUNK))
             if not data:
                 break
             self._buf[self._len:self._len + len(data)] = data

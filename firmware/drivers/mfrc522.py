@@ -56,7 +56,6 @@ _REQA = const(0x26)           # request (7-bit short frame): idle cards answer w
 _SEL_CL1 = const(0x93)        # select / anticollision, cascade level 1
 _NVB_ANTICOLL = const(0x20)   # number of valid bits: 2 bytes, ask for the whole UID
 
-_VERSIONS = (0x91, 0x92, 0x88, 0x12)   # MFRC522 v1.0, v2.0, FM17522 clone, another clone
 _POLL_MS = const(50)          # shortest time between two reads (ms)
 _ABSENT_MS = const(300)       # a tag must be gone this long before it is reported again (ms)
 _WAIT_LOOPS = const(400)      # register polls before a transceive is given up
@@ -64,9 +63,9 @@ _WAIT_LOOPS = const(400)      # register polls before a transceive is given up
 
 class Mfrc522:
     def __init__(self, spi, cs, rst):
-        self._spi = spi
-        self._cs = cs
-        self._rst = rst
+        self.spi = spi
+        self.cs = cs
+        self.rst = rst
         self._tx = bytearray(2)
         self._rx = bytearray(2)
         self.version = 0
@@ -84,20 +83,20 @@ class Mfrc522:
     def _write(self, reg, value):
         self._tx[0] = (reg << 1) & 0x7E
         self._tx[1] = value
-        self._cs.value(0)
+        self.cs.value(0)
         try:
-            self._spi.write(self._tx)
+            self.spi.write(self._tx)
         finally:
-            self._cs.value(1)
+            self.cs.value(1)
 
     def _read(self, reg):
         self._tx[0] = ((reg << 1) & 0x7E) | 0x80
         self._tx[1] = 0
-        self._cs.value(0)
+        self.cs.value(0)
         try:
-            self._spi.write_readinto(self._tx, self._rx)
+            self.spi.write_readinto(self._tx, self._rx)
         finally:
-            self._cs.value(1)
+            self.cs.value(1)
         return self._rx[1]
 
     def _set_bits(self, reg, mask):
@@ -109,10 +108,10 @@ class Mfrc522:
     # --- chip ----------------------------------------------------------------------------------------------
 
     def _start(self):
-        self._cs.value(1)
-        self._rst.value(1)
+        self.cs.value(1)
+        self.rst.value(1)
         self.version = self._read(_VERSION)
-        if self.version not in _VERSIONS:
+        if self.version not in (0x91, 0x92, 0x88, 0x12):   # MFRC522 v1.0, v2.0, FM17522 clone, another clone
             return
         self._write(_COMMAND, _CMD_SOFT_RESET)
         for _ in range(_WAIT_LOOPS):
