@@ -28,11 +28,11 @@ except ImportError:  # CPython
 
 DEFAULTS = {
     "counts_per_m": 1000,     # encoder counts per metre of travel (calibrate: cbtc calibrate encoder)
-    "report_ms": 100,         # report period (ms)
+    "report_ms": 50,          # report period (ms): the data age of the train behind depends on it
     "v_max_mmps": 600,        # line speed ceiling of this train (mm/s)
     "v_noload_mmps": 750,     # speed at 100 % duty, for the PI feed-forward (mm/s)
     "acc_mmps2": 600,         # acceleration when a command does not say (mm/s^2)
-    "dec_mmps2": 800,         # service deceleration when a command does not say (mm/s^2)
+    "dec_mmps2": 800,         # service deceleration: the braking curve to the end of authority (mm/s^2)
     "emergency_dec_mmps2": 1400,  # what the motor brake delivers: the trip curve (mm/s^2)
     "kp": 0.05,               # PI proportional gain (% duty per mm/s)
     "ki": 0.25,               # PI integral gain (% duty per mm of accumulated error)
@@ -50,6 +50,7 @@ DEFAULTS = {
 
 _HISTORY = const(12)     # reports remembered for matching commands to the report they are based on
 _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
+_CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
 
 
 class OnboardUnit:
@@ -66,6 +67,7 @@ class OnboardUnit:
     _rng_report = None
     guard_on = False
     guard_trips = 0
+    trips = 0                # times the speed crossed the trip curve (emergency brake)
 
     def __init__(self, train_id, key, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
@@ -216,11 +218,24 @@ class OnboardUnit:
             self.v_mmps = (self.odo_mm - self._ring_odo[best]) * 1000 // (now_ms - self._ring_t[best])
 
     def braking_curve_mmps(self, dec_mmps2):
-        """Highest speed (mm/s) from which the train still stops at its end of authority, reaction time counted."""
-        dist_mm = self.eoa_mm - self.odo_mm - self.v_mmps * self.cfg["reaction_ms"] / 1000.0
-        if dist_mm <= self.cfg["stop_window_mm"]:
+        """The service curve: highest speed (mm/s) from which braking at `dec_mmps2` stops the train at its end of
+        authority, less the stop window. The speed loop rides it; safety rests on the trip curve above it."""
+        dist_mm = self.eoa_mm - self.odo_mm - self.cfg["stop_window_mm"]
+        if dist_mm <= 0:
             return 0.0
-        return sqrt(2.0 * dec_mmps2 * dist_mm)
+        v = sqrt(2.0 * dec_mmps2 * dist_mm)
+        return v if v >= _CREEP_MMPS else 0.0   # the last fraction of a mm: stop and hold rather than creep
+
+    def trip_curve_mmps(self):
+        """The emergency curve: highest speed v (mm/s) from which the motor brake still stops the train at its end of
+        authority after the reaction time r: v r + v^2 / (2 b) = distance, b the emergency deceleration. Above it the
+        unit trips. It lies above the service curve everywhere, so riding the service curve never trips."""
+        dist_mm = self.eoa_mm - self.odo_mm
+        if dist_mm <= 0:
+            return 0.0
+        b = self.cfg["emergency_dec_mmps2"]
+        r = self.cfg["reaction_ms"] / 1000.0
+        return b * (sqrt(r * r + 2.0 * dist_mm / b) - r)
 
     def guard_limit_mm(self):
         """Shortest measured gap (mm) the guard accepts at the current speed: emergency braking distance, reaction
@@ -253,25 +268,30 @@ class OnboardUnit:
             acc = cfg["acc_mmps2"]
             dec = cfg["dec_mmps2"]
             mode = "idle" if self.cmd is None else "stop"
-        v_curve = self.braking_curve_mmps(dec)
+        v_curve = self.braking_curve_mmps(cfg["dec_mmps2"])
         if self.mode == "trip":
             if self.v_mmps > 0:
                 self._brake()
                 return
             self.mode = mode
-        if self.v_mmps > self.braking_curve_mmps(cfg["emergency_dec_mmps2"]) + cfg["trip_margin_mmps"]:
+        if self.v_mmps > self.trip_curve_mmps() + cfg["trip_margin_mmps"]:
+            self.trips += 1
             self.mode = "trip"
             self._brake()
             return
         self.mode = mode
-        v_target = min(v_cap, v_curve)
+        # the speed reference ramps to the commanded speed at the commanded rates, and rides the service curve when
+        # that is lower: riding the curve to an end of authority that advances with the train ahead decelerates the
+        # train by exactly Takagi's synchronisation law, beta_s (v - v_ahead) / v (docs/protocol.md)
         v_before = self.v_ref_mmps
-        if v_target > self.v_ref_mmps:
-            self.v_ref_mmps = min(v_target, self.v_ref_mmps + acc * dt_s)
+        if v_cap > v_before:
+            self.v_ref_mmps = min(v_cap, v_before + acc * dt_s)
         else:
-            self.v_ref_mmps = max(v_target, self.v_ref_mmps - dec * dt_s)
+            self.v_ref_mmps = max(v_cap, v_before - dec * dt_s)
+        if self.v_ref_mmps > v_curve:
+            self.v_ref_mmps = v_curve
         a_ref = (self.v_ref_mmps - v_before) / dt_s if dt_s > 0 else 0.0
-        if self.v_ref_mmps <= 0 and self.v_mmps <= 0:
+        if self.v_ref_mmps <= 0:   # a standstill target: brake (stop and hold), do not coast
             self._brake()
             return
         error = self.v_ref_mmps - self.v_mmps

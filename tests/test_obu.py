@@ -19,12 +19,14 @@ class Bench:
                                     {"counts_per_m": 1000})
         self.now_ms = 0
         self.cmd_seq = 0
+        self._travel_mm = 0.0
 
     def step(self, ms=20, v_mmps=None):
         """Advance board time; optionally move the train at v_mmps (the encoder counts 1 per mm)."""
         self.now_ms += ms
         if v_mmps:
-            self.enc.counts += v_mmps * ms // 1000
+            self._travel_mm += v_mmps * ms / 1000.0   # whole counts of the distance travelled, fractions kept
+            self.enc.counts = int(self._travel_mm)
         self.unit.step(self.now_ms)
 
     def last_report(self):

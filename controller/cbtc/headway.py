@@ -37,6 +37,7 @@ def system_figures(recorder):
         "max_speed_mps": round(float(max(np.max(v_a), np.max(v_b))), 3),
         "collisions": summary["collisions"],
         "authority_overruns": summary["authority_overruns"],
+        "emergency_trips": summary["emergency_trips"],
         "simulated_s": summary["simulated_s"],
     }
 

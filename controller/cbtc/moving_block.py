@@ -11,14 +11,16 @@ The onboard braking curve to the end of authority stays the safety net under bot
 
 from .authority import AuthorityParams, combined_sigma_m, minimum_gap_m, moving_block_distance_m
 from .control_laws import departure_accelerations_mps2, departure_k_for, sync_deceleration_mps2
+from .firmware_modules import obu
 
 _STANDING_MPS = 0.02
+_STOP_WINDOW_M = obu.DEFAULTS["stop_window_mm"] / 1000.0   # the onboard service curve ends this short of the limit
 
 
 class MovingBlockPolicy:
     name = "moving_block"
 
-    def __init__(self, params: AuthorityParams = None, sync_tolerance_m: float = 0.03, takagi: bool = True):
+    def __init__(self, params: AuthorityParams = None, sync_tolerance_m: float = 0.01, takagi: bool = True):
         self.params = params or AuthorityParams()
         self.sync_tolerance_m = sync_tolerance_m
         self.takagi = takagi
@@ -68,7 +70,7 @@ class MovingBlockPolicy:
         mode = "free"
         if self.takagi and leader is not None:
             v_b = max(0.0, own.v_mps)
-            if v_b > _STANDING_MPS and distance_m <= minimum_gap_m(v_b, beta_s, 0.0) + v_b * profile.reaction_s \
+            if v_b > _STANDING_MPS and distance_m <= minimum_gap_m(v_b, beta_s, 0.0) + _STOP_WINDOW_M \
                     + self.sync_tolerance_m:
                 mode = "sync"
                 beta_b = sync_deceleration_mps2(v_b, max(0.0, v_leader), beta_s)

@@ -32,6 +32,11 @@ class OdometryEstimator:
         var = self._var_ref_m2 + (self.drift_frac * travel_m) ** 2
         return self._s_ref_m + travel_m, var
 
+    def odometer_per_m_low(self, k_sigma: float) -> float:
+        """A lower bound of odometer metres per true metre: this estimator does not learn the encoder's scale, so it
+        takes the drift fraction as the scale's 1-sigma."""
+        return 1.0 - k_sigma * self.drift_frac
+
     def on_report(self, report: dict, clock) -> None:
         t_s = clock.to_controller_s(report["t_ms"])
         odo_mm = report["odo_mm"]

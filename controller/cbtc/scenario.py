@@ -262,6 +262,7 @@ class Recorder:
                 "estimation_rmse_m": None if err is None else round(err["rmse_m"], 4),
                 "estimation_max_error_m": None if err is None else round(err["max_abs_m"], 4),
                 "commands_rejected_onboard": train.obu.rejected,
+                "emergency_trips": train.obu.trips,
                 "reports_rejected": state.reports_rejected,
             })
         return {
@@ -273,6 +274,7 @@ class Recorder:
             "trains": trains,
             "collisions": sum(self.collisions),
             "authority_overruns": sum(self.overruns),
+            "emergency_trips": sum(t.obu.trips for t in self.sim.trains),
         }
 
 

@@ -145,6 +145,16 @@ class UkfEstimator:
             return None
         return float(state.snap[1][K])
 
+    def odometer_per_m_low(self, k_sigma: float) -> float:
+        """A lower bound of the encoder's odometer metres per true metre, 1 + scale error - k_sigma sigma: the
+        controller turns a distance along the track into odometer units with it, so a train whose encoder reads short
+        still stops within its authority. 1 - k_sigma * the prior sigma while unlocated or not estimated."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K:
+            return 1.0 - k_sigma * self.params.scale_sigma
+        _t, x, P = state.snap
+        return 1.0 + float(x[K]) - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
+
     def counters(self) -> dict:
         """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""
         state = self._newest or _State(None)

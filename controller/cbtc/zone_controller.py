@@ -256,7 +256,10 @@ class ZoneController:
             stop_m = v_mps * state.setup.profile.reaction_s + v_mps * v_mps / (2.0 * dec_mps2)
             eoa_mm = report["odo_mm"] + int(stop_m * 1000.0)
         else:
-            eoa_mm = report["odo_mm"] + int(distance_m * 1000.0)
+            # metres along the track into the board's odometer units, with a low bound of the encoder's scale: a
+            # wheel that reads short must not carry the train past its limit
+            scale = state.estimator.odometer_per_m_low(self.params.k_sigma)
+            eoa_mm = report["odo_mm"] + int(distance_m * scale * 1000.0)
         if state.eoa_mm is not None and (distance_m is None or self._leader_stale(state, now_s)):
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
