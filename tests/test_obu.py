@@ -143,3 +143,44 @@ def test_broken_sensors_are_reported_and_never_stop_the_loop():
 def test_unknown_config_key_is_named():
     with pytest.raises(ValueError, match="counts_per_metre"):
         obu.OnboardUnit("A", KEY, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print, {"counts_per_metre": 3})
+
+
+def test_the_trip_curve_lies_above_the_service_curve_everywhere():
+    """Riding the service curve never trips: at every distance the emergency curve (reaction time counted) is higher."""
+    bench = Bench()
+    unit = bench.unit
+    window = unit.cfg["stop_window_mm"]
+    for dist_mm in range(window + 1, 3000):
+        unit.eoa_mm = unit.odo_mm + dist_mm
+        assert unit.trip_curve_mmps() > unit.braking_curve_mmps(unit.cfg["dec_mmps2"]), dist_mm
+    # by hand at 1 m: service sqrt(2 * 800 * 990) = 1258.6 mm/s; trip 1400 (sqrt(0.06^2 + 2 * 1000 / 1400) - 0.06)
+    unit.eoa_mm = unit.odo_mm + 1000
+    assert unit.braking_curve_mmps(800) == pytest.approx(1258.57, abs=0.01)
+    assert unit.trip_curve_mmps() == pytest.approx(1400 * ((0.0036 + 2000 / 1400) ** 0.5 - 0.06), abs=0.01)
+
+
+def test_riding_the_curve_behind_a_moving_limit_is_takagi_synchronisation():
+    """The end of authority advances with a leader that slows from 0.6 to 0.2 m/s at 0.3 m/s^2; the follower starts on
+    its service curve at 0.6 m/s. Riding the curve, its speed follows eq. 24, dv_B/dt = -beta_s (v_B - v_A) / v_B,
+    integrated alongside, and it ends at the leader's speed, still on the curve."""
+    from cbtc.control_laws import sync_deceleration_mps2
+
+    bench = Bench()
+    unit = bench.unit
+    beta = unit.cfg["dec_mmps2"]
+    window = unit.cfg["stop_window_mm"]
+    bench.step()
+    v_a = v_sync = 600.0
+    eoa = 600.0 ** 2 / (2 * beta) + window                  # the follower stands on its curve at 600 mm/s
+    unit.v_ref_mmps = 600.0
+    worst = 0.0
+    for _ in range(250):                                    # 5 s in 20 ms steps
+        bench.command(v_mmps=600, eoa_mm=int(round(eoa)), ttl_ms=800)
+        bench.step(v_mmps=unit.v_ref_mmps)
+        v_sync -= sync_deceleration_mps2(v_sync / 1000, v_a / 1000, beta / 1000) * 1000 * 20e-3
+        worst = max(worst, abs(unit.v_ref_mmps - v_sync))
+        v_a = max(200.0, v_a - 300.0 * 20e-3)
+        eoa += v_a * 20e-3
+    assert worst < 20.0, "the follower left the eq. 24 trajectory by %.1f mm/s" % worst   # 3 % of 600 mm/s
+    assert unit.v_ref_mmps == pytest.approx(200.0, abs=10.0)
+    assert abs(unit.braking_curve_mmps(beta) - unit.v_ref_mmps) < 10.0

@@ -142,3 +142,22 @@ def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     assert train.obu.cseq > 0, f"the rebooted board obeys commands again ({train.obu.rejected}: {train.obu.last_reject})"
     assert train.travelled_m > sim.recorder.travelled_m[1][int(20.0 / 0.02)] + 2.0
     assert sum(sim.recorder.collisions) == 0 and sum(sim.recorder.overruns) == 0
+
+
+def test_an_encoder_that_reads_short_still_stops_within_the_authority(square):
+    """Wheel 4 % larger than configured: the odometer counts 4 % short. The controller turns its limits into odometer
+    units with a low bound of the learnt scale, so the follower still stops behind a leader that stops dead."""
+    profile = TrainProfile().with_changes(encoder_scale_error=-0.04)
+    leader = TrainProfile().with_changes(v_max_mps=0.45)
+    sim = Simulation(ScenarioConfig(layout=square, seed=2, duration_s=40.0,
+                                    trains=[TrainSpec("A", square.wrap(1.5 + leader.length_m), (), leader),
+                                            TrainSpec("B", 0.0, (), profile)]))
+    run_to(sim, 20.0)
+    est = sim.zc.trains["B"].estimator
+    low = est.odometer_per_m_low(sim.config.params.k_sigma)
+    assert 0.93 < low <= 0.96, "a bound below the true 0.96 odometer metres per metre, learnt to within 3 %"
+    sim.trains[0].stop_dead()
+    run_to(sim, 30.0)
+    assert sim.trains[1].v_mps == 0.0
+    assert sim.recorder.collisions == [0, 0] and sim.recorder.overruns == [0, 0]
+    assert sim.recorder.gap_m[1][-1] >= 0.5 * sim.config.params.margin_m

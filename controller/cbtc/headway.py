@@ -7,6 +7,7 @@ the tests and anyone's notebook get the same numbers.
 import numpy as np
 
 from .authority import minimum_gap_m
+from .firmware_modules import obu
 from .scenario import ScenarioConfig, Simulation, TrainSpec, paper_scenario
 from .train_profile import TrainProfile
 
@@ -70,49 +71,67 @@ def reductions(moving, fixed):
             "lap_reduction_pct": pct(moving["mean_lap_s"], fixed["mean_lap_s"])}
 
 
-def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s=25.0, estimator="ukf"):
+def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s=25.0, estimator="ukf",
+                     report_ms=None):
     """Train B (line speed 0.6 m/s) catches up with a slower train A and follows it: achieved gap against
-    the theoretical minimum S_M + v^2/(2 beta_s) at the speed B actually runs, sample by sample."""
+    the theoretical minimum S_M + v^2/(2 beta_s) at the speed B actually runs, sample by sample. `report_ms`: the
+    boards' report period (None: the firmware's default)."""
     fast = TrainProfile()
     slow = fast.with_changes(v_max_mps=leader_v_mps)
     start_b = 0.0
     start_a = layout.wrap(start_b + 1.5)
     config = ScenarioConfig(layout=layout, seed=seed, duration_s=duration_s, estimator=estimator,
-                            trains=[TrainSpec("A", start_a, (), slow), TrainSpec("B", start_b, (), fast)])
+                            trains=[TrainSpec("A", start_a, (), slow), TrainSpec("B", start_b, (), fast)],
+                            obu_overrides=None if report_ms is None else {"report_ms": int(report_ms)})
     sim = Simulation(config)
+    below_curve = []   # how far the follower rides inside its service curve (m), sampled with the recorder
+    follower = sim.trains[1]
+
+    def probe(_now_s):
+        unit = follower.obu
+        v_m = max(0, unit.v_mmps) / 1000.0
+        dist_m = (unit.eoa_mm - unit.odo_mm - unit.cfg["stop_window_mm"]) / 1000.0
+        below_curve.append(dist_m - v_m * v_m / (2.0 * unit.cfg["dec_mmps2"] / 1000.0))
+
+    sim.scheduler.call_every(config.loop_s, probe, start_s=0.0106)
     recorder = sim.run()
     t = np.asarray(recorder.t_s)
     gap = np.asarray(recorder.gap_m[1])
     v_b = np.asarray(recorder.v_mps[1])
     steady = (t >= settle_s) & (v_b > 0.05)
+    n = min(len(below_curve), len(t))
+    riding_m = float(np.mean(np.asarray(below_curve[:n])[steady[:n]]))
     s_min = minimum_gap_m(v_b[steady], fast.beta_s_mps2, config.params.margin_m)
     achieved = float(np.mean(gap[steady]))
     theoretical = float(np.mean(s_min))
     v_mean = float(np.mean(v_b[steady]))
     return {
+        "report_ms": report_ms or obu.DEFAULTS["report_ms"],
         "leader_speed_mps": leader_v_mps,
         "follower_speed_mps": round(v_mean, 3),
         "achieved_gap_m": round(achieved, 4),
         "theoretical_min_gap_m": round(theoretical, 4),
         "achieved_over_theoretical": round(achieved / theoretical, 3),
         "overhead_m": round(achieved - theoretical, 4),
-        "overhead_budget_m": _overhead_budget(sim, steady, v_mean, achieved - theoretical),
+        "overhead_budget_m": _overhead_budget(sim, steady, riding_m, achieved - theoretical),
         "collisions": recorder.summary()["collisions"],
         "authority_overruns": recorder.summary()["authority_overruns"],
     }
 
 
-def _overhead_budget(sim, steady, v_mps, overhead_m):
-    """Where the distance beyond S_min goes, over the steady samples: the onboard reaction allowance (by design),
-    k sigma of both estimates (measured), and the rest (measured remainder: data age between reports and commands,
-    and the speed loop riding below the curve)."""
+def _overhead_budget(sim, steady, riding_m, overhead_m):
+    """Where the distance beyond S_min goes, over the steady samples: the stop window the service curve keeps (by
+    design), k sigma of both estimates (measured), how far the follower rides inside its curve (measured on board:
+    its speed cannot follow the saw-tooth of an end of authority that jumps at each report of the train ahead), and
+    the remainder: the age of the leader's data (its report period, latency) and estimate errors."""
     rec = sim.recorder
     sigma_a = np.asarray(rec.est_sigma_m[0])[steady]
     sigma_b = np.asarray(rec.est_sigma_m[1])[steady]
     k_sigma_m = sim.config.params.k_sigma * float(np.nanmean(np.sqrt(sigma_a ** 2 + sigma_b ** 2)))
-    reaction_m = v_mps * sim.trains[1].profile.reaction_s
-    return {"reaction_m": round(reaction_m, 4), "k_sigma_m": round(k_sigma_m, 4),
-            "data_age_and_slack_m": round(overhead_m - reaction_m - k_sigma_m, 4)}
+    window_m = obu.DEFAULTS["stop_window_mm"] / 1000.0
+    return {"stop_window_m": round(window_m, 4), "k_sigma_m": round(k_sigma_m, 4),
+            "inside_curve_m": round(riding_m, 4),
+            "leader_data_age_m": round(overhead_m - window_m - k_sigma_m - riding_m, 4)}
 
 
 def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf"):

@@ -46,6 +46,7 @@ class ScenarioConfig:
     dwell_s: tuple = (1.0, 3.0)
     policy_options: dict = field(default_factory=dict)
     ranging: dict = None             # RangingSensor settings: every train ranges to the one ahead, guard armed
+    obu_overrides: dict = None       # OnboardUnit settings for every train (firmware/obu.py DEFAULTS), e.g. report_ms
 
 
 def train_key(seed: int, train_id: str) -> bytes:
@@ -100,7 +101,8 @@ class Simulation:
                                          up=config.link, down=config.link)
             offset_ms = int(rng.integers(0, 10_000_000))
             self.trains.append(VirtualTrain(spec.train_id, train_key(config.seed, spec.train_id), layout, spec.profile,
-                                            spec.s0_m, client, rng, offset_ms, ranging=self._ranging(index)))
+                                            spec.s0_m, client, rng, offset_ms, obu_overrides=config.obu_overrides,
+                                            ranging=self._ranging(index)))
         self.recorder = Recorder(self)
         self.zc.start()
         for train in self.trains:

@@ -7,7 +7,7 @@ from .common import format_table, print_json
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
            ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("trains_per_hour", "trains/h"),
-           ("collisions", "collisions"), ("authority_overruns", "overruns")]
+           ("collisions", "collisions"), ("authority_overruns", "overruns"), ("emergency_trips", "trips")]
 
 
 def register(sub):
@@ -16,6 +16,8 @@ def register(sub):
     p.add_argument("--layout", default="itb_square")
     p.add_argument("--laps", type=int, default=5)
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
+    p.add_argument("--report-ms", default="", metavar="MS,...",
+                   help="also run the steady-following experiment with these report periods (ms), e.g. 100,50,20")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", default="", help="distance-time plot of both systems (the paper's Figure 4)")
@@ -27,10 +29,13 @@ def run(args):
     systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
     following = steady_following(layout, seed=args.seed)
+    periods = [int(c) for c in args.report_ms.split(",") if c.strip()] if args.report_ms else []
+    by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in periods]
     counts = [int(c) for c in args.blocks.split(",") if c.strip()] if args.blocks else []
     sweep = block_sweep(layout, counts, seed=args.seed) if counts else []
     result = {"layout": layout.name, "seed": args.seed, "systems": systems, "reductions": cuts,
-              "paper": PAPER, "following": following, "block_sweep": sweep}
+              "paper": PAPER, "following": following, "following_by_report_ms": by_period,
+              "block_sweep": sweep}
     if args.plot:
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
                           ["fixed block (baseline)", "moving block + Takagi control"], args.plot,
@@ -42,10 +47,11 @@ def run(args):
     print(format_table([systems["fixed_block"], systems["moving_block"]], COLUMNS))
     print(f"moving block vs fixed block: gap -{cuts['gap_reduction_pct']} % (paper -52 %), "
           f"lap time -{cuts['lap_reduction_pct']} % (paper -56 %)")
-    f = following
-    print(f"steady following at {f['follower_speed_mps']} m/s: achieved gap {f['achieved_gap_m']} m, theoretical "
-          f"S_M + v^2/(2 beta_s) = {f['theoretical_min_gap_m']} m, ratio {f['achieved_over_theoretical']} "
-          f"(overhead {f['overhead_m']} m: {f['overhead_budget_m']})")
+    for f in [following] + by_period:
+        budget = ", ".join(f"{k[:-2].replace('_', ' ')} {v}" for k, v in f["overhead_budget_m"].items())
+        print(f"steady following at {f['follower_speed_mps']} m/s, reports every {f['report_ms']} ms: achieved gap "
+              f"{f['achieved_gap_m']} m, theoretical S_M + v^2/(2 beta_s) = {f['theoretical_min_gap_m']} m, ratio "
+              f"{f['achieved_over_theoretical']} (overhead {f['overhead_m']} m: {budget})")
     if sweep:
         print("fixed-block sweep:")
         print(format_table(sweep, [("blocks", "blocks"), ("block_length_m", "block m")] + COLUMNS[1:]))
