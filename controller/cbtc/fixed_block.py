@@ -4,12 +4,15 @@ Made to be fair, not a straw man: the same trains, stops, safety margin and onbo
 only the authority differs. A train may run to the entry of the first occupied block ahead (its signal), less the
 safety margin; speed codes descend behind an occupied block as in seed 000 (the block just behind an occupied block gives the
 lowest code, restricted speed and a stop at its end; the next one back the approach code; further back line speed).
+Each code reaches the train as a Hamming-coded telegram through a noisy channel (cbtc.speed_code_channel, seed 003);
+a rejected telegram gives the lowest code.
 Occupancy comes from track circuits, which detect any part of a train in a block: in simulation from the trains'
 true spans (`track_circuits`), otherwise from the estimates widened by k sigma.
 """
 
 from .authority import AuthorityParams
 from .layout import Block
+from .speed_code_channel import SpeedCodeChannel
 
 
 def equal_blocks(length_m: float, count: int):
@@ -24,12 +27,14 @@ class FixedBlockPolicy:
     name = "fixed_block"
 
     def __init__(self, params: AuthorityParams = None, blocks=None, speed_codes=(0.5, 0.75, 1.0),
-                 track_circuits=None):
+                 track_circuits=None, code_ber=0.0, seed=0):
         self.params = params or AuthorityParams()
         self._blocks = blocks              # None: the layout's own; int: that many equal blocks; or a tuple of Block
         # fraction of line speed by clear blocks ahead: [0] = stop at this block's end, [1] = approach, [2+] = line
         self.speed_codes = tuple(speed_codes)
         self.track_circuits = track_circuits  # callable() -> list of (train_id, head_s, tail_s) in truth, or None
+        # every code reaches the train as a Hamming-coded telegram through the rails (bit-error rate code_ber)
+        self.codes = SpeedCodeChannel(code_ber, seed)
 
     def blocks(self, layout):
         if self._blocks is None:
@@ -85,8 +90,14 @@ class FixedBlockPolicy:
         own = state.estimator.estimate(state.report_t_s)
         spans = self._spans(zc)
         clear_ahead, distance_m = self._clear_run(layout, blocks, spans, state.train_id, own.s_m)
+        code = min(clear_ahead, len(self.speed_codes) - 1)
+        i = self._index_at(blocks, layout, own.s_m)
+        received = self.codes.transmit(i, code)
+        if received < code:
+            # a rejected (or lower) code: the train may go only as far as that code allows
+            distance_m = min(distance_m, layout.ahead_m(own.s_m, blocks[(i + received) % len(blocks)].end_m))
         distance_m -= self.params.margin_m + self.params.k_sigma * own.sigma_s_m
-        code_mps = self.speed_codes[min(clear_ahead, len(self.speed_codes) - 1)] * profile.v_max_mps
+        code_mps = self.speed_codes[min(received, len(self.speed_codes) - 1)] * profile.v_max_mps
         return distance_m, code_mps, profile.accel_max_mps2, profile.beta_s_mps2
 
     def _clear_run(self, layout, blocks, spans, train_id, head_s):

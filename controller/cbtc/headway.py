@@ -43,11 +43,12 @@ def system_figures(recorder):
     }
 
 
-def run_paper_systems(layout, seed=0, laps=5, blocks=None, estimator="ukf"):
-    """The paper scenario under moving block (with Takagi control) and under fixed blocks; returns (figures, recorders)."""
+def run_paper_systems(layout, seed=0, laps=5, blocks=None, estimator="ukf", code_ber=0.0):
+    """The paper scenario under moving block (with Takagi control) and under fixed blocks, whose speed codes reach
+    the trains as telegrams with bit-error rate `code_ber`; returns (figures, recorders)."""
     results, recorders = {}, {}
     for policy in ("moving_block", "fixed_block"):
-        options = {} if policy == "moving_block" else {"blocks": blocks}
+        options = {} if policy == "moving_block" else {"blocks": blocks, "code_ber": code_ber}
         config = paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, policy=policy,
                                 estimator=estimator, policy_options=options)
         sim = Simulation(config)
@@ -55,6 +56,8 @@ def run_paper_systems(layout, seed=0, laps=5, blocks=None, estimator="ukf"):
             sim.policy.track_circuits = _truth_spans(sim)
         recorders[policy] = sim.run()
         results[policy] = system_figures(recorders[policy])
+        if policy == "fixed_block":
+            results[policy]["speed_code_telegrams"] = dict(sim.policy.codes.counts)
     return results, recorders
 
 

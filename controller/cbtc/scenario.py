@@ -59,7 +59,7 @@ def make_policy(config: ScenarioConfig):
         return MovingBlockPolicy(config.params)
     if config.policy == "fixed_block":
         from .fixed_block import FixedBlockPolicy
-        return FixedBlockPolicy(config.params, **config.policy_options)
+        return FixedBlockPolicy(config.params, **{"seed": config.seed, **config.policy_options})
     raise ConfigError(f"unknown policy {config.policy!r}: use moving_block or fixed_block")
 
 

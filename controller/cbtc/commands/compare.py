@@ -18,6 +18,8 @@ def register(sub):
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",
                    help="also run the steady-following experiment with these report periods (ms), e.g. 100,50,20")
+    p.add_argument("--code-ber", type=float, default=0.0, metavar="P",
+                   help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", default="", help="distance-time plot of both systems (the paper's Figure 4)")
@@ -26,7 +28,7 @@ def register(sub):
 
 def run(args):
     layout = load_layout(args.layout)
-    systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps)
+    systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps, code_ber=args.code_ber)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
     following = steady_following(layout, seed=args.seed)
     periods = [int(c) for c in args.report_ms.split(",") if c.strip()] if args.report_ms else []
@@ -45,6 +47,10 @@ def run(args):
         return 0
     print(f"paper scenario on {layout.name}, seed {args.seed}")
     print(format_table([systems["fixed_block"], systems["moving_block"]], COLUMNS))
+    codes = systems["fixed_block"]["speed_code_telegrams"]
+    print(f"fixed-block speed codes as telegrams (bit-error rate {args.code_ber}): {codes['sent']} sent, "
+          f"{codes['ok']} clean, {codes['corrected']} corrected, {codes['detected']} rejected (lowest code given), "
+          f"{codes['undetected']} wrong")
     print(f"moving block vs fixed block: gap -{cuts['gap_reduction_pct']} % (paper -52 %), "
           f"lap time -{cuts['lap_reduction_pct']} % (paper -56 %)")
     for f in [following] + by_period:
