@@ -19,7 +19,7 @@ except ImportError:  # CPython
         return value
 
 _ENCODER_A = const(2)         # D4  encoder output (open collector, on-board pull-up); strapping pin: must be high at boot
-_ENCODER_B = None             # no pin left for a second channel: direction comes from the motor command
+                              # (no pin left for a second channel: direction comes from the motor command)
 _MOTOR_IN1 = const(5)         # D1  H-bridge IN1 (forward PWM)
 _MOTOR_IN2 = const(4)         # D2  H-bridge IN2 (reverse PWM)
 _MOTOR_PWM_HZ = const(1000)   # PWM frequency (Hz)
@@ -46,12 +46,11 @@ def make_drivers():
     gc.collect()
     from drivers.encoder import Encoder
 
-    pin_b = None if _ENCODER_B is None else machine.Pin(_ENCODER_B, machine.Pin.IN, machine.Pin.PULL_UP)
-    encoder = Encoder(machine.Pin(_ENCODER_A, machine.Pin.IN, machine.Pin.PULL_UP), pin_b)
+    encoder = Encoder(machine.Pin(_ENCODER_A, machine.Pin.IN, machine.Pin.PULL_UP))
     gc.collect()
     from drivers.mfrc522 import Mfrc522
 
-    rfid = Mfrc522(machine.SPI(_RFID_SPI, baudrate=_RFID_SPI_HZ, polarity=0, phase=0),
+    rfid = Mfrc522(machine.SPI(_RFID_SPI, baudrate=_RFID_SPI_HZ),   # mode 0: polarity 0, phase 0 (the defaults)
                    machine.Pin(_RFID_CS, machine.Pin.OUT, value=1), machine.Pin(_RFID_RST, machine.Pin.OUT, value=0))
     gc.collect()
     from drivers.ips import IpsReceiver

@@ -15,31 +15,27 @@ _IPPROTO_TCP = const(6)   # lwIP and Linux agree on these values; MicroPython po
 _TCP_NODELAY = const(1)
 _MAX_MESSAGES = const(4)  # messages taken per poll, so a flood cannot starve the loop
 
-ONLINE = b"online"
-OFFLINE = b"offline"
-
 
 class Link:
-    def __init__(self, client, status_topic, subscriptions, errors=(OSError,), backoff_min_ms=500,
-                 backoff_max_ms=8000):
+    # state that starts like this on every link (class attributes: an instance pays for one only once it changes it)
+    on_message = None   # callable(topic: str, payload: bytes, now_ms)
+    connected = False
+    losses = 0          # connections lost
+    last_error = ""     # repr of the error that lost (or refused) the connection
+    now_ms = 0          # board ms of the current poll, handed on to on_message
+    _next_try_ms = 0
+
+    def __init__(self, client, status_topic, subscriptions, errors=(OSError,), backoff_ms=(500, 8000)):
         """`client`: an umqtt.simple.MQTTClient; `subscriptions`: topics to (re)subscribe after every connect;
-        `errors`: the exception classes that mean the connection is gone; backoff in ms, doubling up to the max."""
+        `errors`: the exception classes that mean the connection is gone; `backoff_ms`: (first, longest) delay before
+        a reconnect attempt (ms): it doubles after each failure and starts again at the first after a success."""
         self.client = client
         self.status_topic = status_topic
         self.subscriptions = subscriptions
         self.errors = errors
-        self.backoff_min_ms = backoff_min_ms
-        self.backoff_max_ms = backoff_max_ms
-        self._backoff_ms = backoff_min_ms
-        self._next_try_ms = 0
-        self.now_ms = 0
-        self._delivered = False
-        self.on_message = None      # callable(topic: str, payload: bytes, now_ms)
-        self.connected = False
-        self.connects = 0
-        self.losses = 0
-        self.last_error = ""
-        client.set_last_will(status_topic, OFFLINE, True, 1)
+        self.backoff_ms = backoff_ms
+        self._backoff_ms = backoff_ms[0]
+        client.set_last_will(status_topic, b"offline", True, 1)   # retained
         client.set_callback(self._deliver)
 
     def due(self, now_ms):
@@ -52,15 +48,14 @@ class Link:
         try:
             self.client.connect()
             self.client.sock.setsockopt(_IPPROTO_TCP, _TCP_NODELAY, 1)
-            self.client.publish(self.status_topic, ONLINE, True, 1)
+            self.client.publish(self.status_topic, b"online", True, 1)
             for topic in self.subscriptions:
                 self.client.subscribe(topic)
         except self.errors as exc:
             self._lost(now_ms, exc)
             return False
         self.connected = True
-        self.connects += 1
-        self._backoff_ms = self.backoff_min_ms
+        self._backoff_ms = self.backoff_ms[0]
         return True
 
     def poll(self, now_ms):
@@ -105,4 +100,4 @@ class Link:
             except OSError:
                 pass
         self._next_try_ms = now_ms + self._backoff_ms
-        self._backoff_ms = min(self._backoff_ms * 2, self.backoff_max_ms)
+        self._backoff_ms = min(self._backoff_ms * 2, self.backoff_ms[1])

@@ -52,31 +52,31 @@ def load_config():
     return cfg
 
 
-def connect_wifi(cfg, clock, sleep_ms):
+def connect_wifi(config, now, sleep_ms):
     """Join the configured network, retrying until it works (the train is braked meanwhile)."""
-    if not cfg["wifi_ssid"]:
+    if not config["wifi_ssid"]:
         return
     import network
 
     sta = network.WLAN(network.STA_IF)
     sta.active(True)
     while not sta.isconnected():
-        print("wifi: joining %s" % cfg["wifi_ssid"])
-        sta.connect(cfg["wifi_ssid"], cfg["wifi_password"])
-        start_ms = clock.now()
-        while not sta.isconnected() and clock.now() - start_ms < cfg["wifi_timeout_ms"]:
+        print("wifi: joining %s" % config["wifi_ssid"])
+        sta.connect(config["wifi_ssid"], config["wifi_password"])
+        start_ms = now()
+        while not sta.isconnected() and now() - start_ms < config["wifi_timeout_ms"]:
             sleep_ms(100)
     print("wifi: %s" % (sta.ifconfig()[0],))
 
 
-def start(clock, version, sleep_ms):
-    """Config, drivers (motor braked), Wi-Fi; returns (cfg, drivers dict: see board.make_drivers). Prints the boot
-    line `lego-cbtc train <id> boot <version>` that `cbtc flash` waits for."""
+def start(now, version, sleep_ms):
+    """Config, drivers (motor braked), Wi-Fi (`now()` gives board ms); returns (cfg, drivers dict: see
+    board.make_drivers). Prints the boot line `lego-cbtc train <id> boot <version>` that `cbtc flash` waits for."""
     cfg = load_config()
     print("lego-cbtc train %s boot %s" % (cfg["train_id"], version))
     import board
 
     drivers = board.make_drivers()
     gc.collect()
-    connect_wifi(cfg, clock, sleep_ms)
+    connect_wifi(cfg, now, sleep_ms)
     return cfg, drivers

@@ -1,68 +1,49 @@
-"""The train board's loop (main.py calls `main()`): boot (startup.py, then `build`), then the OnboardUnit loop.
+"""The train board's loop (main.py calls `main()`): boot (startup.py, then assemble.py), then the loop.
 
-The loop polls MQTT without blocking, keeps a monotonic, non-wrapping uptime (ms) from ticks_ms/ticks_diff and hands
-it to the OnboardUnit. The hardware watchdog is fed only after a healthy pass (no exception, the previous pass
-recent). When the broker is lost the loop goes on (the unit brakes when its command expires); reconnect attempts,
-which may block, are made with backoff and only while the motor is held braked.
+The loop polls MQTT without blocking, keeps a monotonic, non-wrapping uptime (ms, `uptime_ms`) and hands it to the
+OnboardUnit. The hardware watchdog is fed only after a healthy pass (no exception, the previous pass recent). When
+the broker is lost the loop goes on (the unit brakes when its command expires); reconnect attempts, which may block,
+are made with backoff and only while the motor is held braked. MicroPython only (it runs on the board).
 """
 
 import gc
 import sys
-import time
-
-try:
-    from time import sleep_ms, ticks_diff, ticks_ms
-except ImportError:  # CPython
-    def ticks_ms():
-        return int(time.monotonic() * 1000)
-
-    def ticks_diff(new, old):
-        return new - old
-
-    def sleep_ms(ms):
-        time.sleep(ms / 1000.0)
+from time import sleep_ms, ticks_diff, ticks_ms
 
 VERSION = "0.1.0"
+_clock = [ticks_ms(), 0]   # ticks_ms() at the last reading, board ms since boot
 
 
-class Uptime:
+def uptime_ms():
     """Board time in ms since boot that never wraps: ticks_ms differences summed into a Python int."""
-
-    def __init__(self):
-        self._last = ticks_ms()
-        self.ms = 0
-
-    def now(self):
-        t = ticks_ms()
-        self.ms += ticks_diff(t, self._last)
-        self._last = t
-        return self.ms
+    t = ticks_ms()
+    _clock[1] += ticks_diff(t, _clock[0])
+    _clock[0] = t
+    return _clock[1]
 
 
-def run(cfg, clock, unit, net, maint_pin, wdt=None):
-    """The loop; returns (heap_peak, heap_live) in bytes after cfg['run_ms'] (if > 0), or with the motor braked when
-    the FLASH button (`maint_pin` reads 0) is held in the boot window (maintenance: the REPL stays).
-    heap_peak: the most heap in use at the end of a pass, its garbage not yet collected (an upper bound of the live
-    heap during a pass); heap_live: the most heap in use after a pass's garbage is collected."""
-    peak_bytes = 0
-    live_bytes = 0
-    errors = 0
-    next_stats_ms = 0
+def run(config, now, unit, link, maint, watchdog=None):
+    """The loop, `now()` giving board ms: `unit` the OnboardUnit, `link` its link.Link, `maint` the FLASH button's
+    pin, `watchdog` a machine.WDT (or None). Returns (heap_peak, heap_live) in bytes after config['run_ms'] (if > 0),
+    or with the motor braked when the FLASH button (`maint` reads 0) is held in the boot window (maintenance: the REPL
+    stays). heap_peak: the most heap in use at the end of a pass, its garbage not yet collected (an upper bound of the
+    live heap during a pass); heap_live: the most heap in use after a pass's garbage is collected."""
+    peak = live = errors = next_stats_ms = 0
     grace_over = False
-    last_pass_ms = clock.now()
+    last_ms = now()
     while True:
-        now_ms = clock.now()
-        healthy = now_ms - last_pass_ms <= cfg["max_pass_ms"]
-        last_pass_ms = now_ms
+        now_ms = now()
+        healthy = now_ms - last_ms <= config["max_pass_ms"]
+        last_ms = now_ms
         try:
-            if net.connected:
-                net.poll(now_ms)
-            elif net.due(now_ms) and unit.motor.mode == "brake":
-                if net.connect(now_ms):
-                    print("mqtt: connected to %s:%d" % (cfg["broker_host"], cfg["broker_port"]))
+            if link.connected:
+                link.poll(now_ms)
+            elif link.due(now_ms) and unit.motor.mode == "brake":
+                if link.connect(now_ms):
+                    print("mqtt: connected to %s:%d" % (config["broker_host"], config["broker_port"]))
                 else:
-                    print("mqtt: %s; retrying" % net.last_error)
-            unit.link_ok = net.connected
+                    print("mqtt: %s; retrying" % link.last_error)
+            unit.link_ok = link.connected
             unit.step(now_ms)
         except Exception as exc:  # never let the loop die: brake, report on the console, let the watchdog judge
             healthy = False
@@ -70,78 +51,53 @@ def run(cfg, clock, unit, net, maint_pin, wdt=None):
             print("loop: %r" % (exc,))
             unit.motor.brake()
         used = gc.mem_alloc()
-        if used > peak_bytes:
-            peak_bytes = used
-        if wdt is not None and healthy:
-            wdt.feed()
+        if used > peak:
+            peak = used
+        if watchdog is not None and healthy:
+            watchdog.feed()
         if not grace_over:
-            if maint_pin.value() == 0:
+            if maint.value() == 0:
                 unit.motor.brake()
                 print("maintenance: FLASH button held, the train loop stops and the REPL stays")
-                return peak_bytes, live_bytes
-            if now_ms >= cfg["repl_grace_ms"]:
+                return peak, live
+            if now_ms >= config["repl_grace_ms"]:
                 grace_over = True
                 if sys.platform == "esp8266":   # UART0 goes to the IPS; the REPL comes back after a reset
                     import os
 
                     os.dupterm(None, 1)
         if now_ms >= next_stats_ms:
-            next_stats_ms = now_ms + cfg["stats_ms"]
+            next_stats_ms = now_ms + config["stats_ms"]
             print("stats: up_ms %d heap_peak %d heap_live %d heap_free %d link %s losses %d mode %s errors %d "
-                  "sensor_errors %d" % (now_ms, peak_bytes, live_bytes, gc.mem_free(),
-                                        "up" if net.connected else "down", net.losses, unit.mode, errors,
-                                        unit.sensor_errors))
-        if cfg["run_ms"] and now_ms >= cfg["run_ms"]:
-            return peak_bytes, live_bytes
+                  "sensor_errors %d" % (now_ms, peak, live, gc.mem_free(), "up" if link.connected else "down",
+                                        link.losses, unit.mode, errors, unit.sensor_errors))
+        if config["run_ms"] and now_ms >= config["run_ms"]:
+            return peak, live
         gc.collect()
         used = gc.mem_alloc()
-        if used > live_bytes:
-            live_bytes = used
-        sleep_ms(cfg["loop_ms"])
-
-
-def build(cfg, drivers):
-    """Second half of the boot: MQTT link, OnboardUnit and watchdog; returns (unit, link, wdt or None)."""
-    import binascii
-
-    from umqtt.simple import MQTTClient, MQTTException
-
-    gc.collect()
-    import wire
-
-    gc.collect()
-    import obu
-
-    gc.collect()
-    import link
-
-    gc.collect()
-    train_id = cfg["train_id"]
-    client = MQTTClient("cbtc-" + train_id, cfg["broker_host"], cfg["broker_port"], cfg["mqtt_user"],
-                        cfg["mqtt_password"], cfg["keepalive_s"])
-    net = link.Link(client, wire.topic_status(train_id), (wire.topic_command(train_id),),
-                    (OSError, MQTTException), cfg["backoff_min_ms"], cfg["backoff_max_ms"])
-    unit = obu.OnboardUnit(train_id, binascii.unhexlify(cfg["key_hex"]), drivers["encoder"], drivers["ips"],
-                           drivers["rfid"], drivers["motor"], net.publish, cfg["obu"])
-    net.on_message = unit.on_message
-    wdt = None
-    if cfg["watchdog"]:
-        import machine
-
-        wdt = machine.WDT()
-    return unit, net, wdt
+        if used > live:
+            live = used
+        sleep_ms(config["loop_ms"])
 
 
 def main():
-    clock = Uptime()
+    """Boot in two halves, then run the loop. startup.py: config, drivers (motor braked), Wi-Fi; assemble.py: the
+    MQTT link, the OnboardUnit and the watchdog. Each half leaves sys.modules when it is done (startup.py before the
+    second half loads the heavy modules), so the board's heap never holds boot code it will not run again."""
     gc.collect()
     import startup
 
-    cfg, drivers = startup.start(clock, VERSION, sleep_ms)
+    config, drivers = startup.start(uptime_ms, VERSION, sleep_ms)
     del startup
-    for name in ("startup", "board", "train_config", "network"):   # boot-only: their heap goes back
+    for name in ("startup", "board", "train_config", "network"):
         sys.modules.pop(name, None)
     gc.collect()
-    unit, net, wdt = build(cfg, drivers)
+    import assemble
+
+    unit, link, watchdog, config = assemble.build(config, drivers)
+    del assemble
+    sys.modules.pop("assemble")
+    maint = drivers["maint"]
+    del drivers
     gc.collect()
-    print("stopped: heap_peak %d heap_live %d" % run(cfg, clock, unit, net, drivers["maint"], wdt))
+    print("stopped: heap_peak %d heap_live %d" % run(config, uptime_ms, unit, link, maint, watchdog))

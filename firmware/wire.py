@@ -4,6 +4,10 @@ MicroPython-compatible (runs on the ESP8266 and under CPython). Messages are com
 `<json body>#<mac>` where mac is the first 16 bytes of HMAC-SHA256(key, topic + "\\n" + body), hex-encoded. The MAC is
 checked over the bytes exactly as received, so key order and number formatting never matter. See docs/protocol.md.
 
+This module is what a board needs. The zone controller's half (report decoding, command encoding, zone topics, the
+mode and fault names) is wire_zc.py, reached through this module's attributes too (`wire.decode_report`): a board
+never loads it.
+
 Topics (train id `T`, zone `Z`):
   cbtc/train/T/report   board -> controller, 10 Hz, QoS 0
   cbtc/train/T/cmd      controller -> board, 10 Hz, QoS 0
@@ -23,15 +27,10 @@ except ImportError:  # CPython
 
 VERSION = const(1)
 MAX_TAGS = const(4)
+INT31 = const(2147483647)     # largest sequence number, time or odometer value
 _MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
 _MAX_PAYLOAD = const(1024)    # longest payload accepted (bytes)
 _ID_MAX_LEN = const(16)       # longest train id (characters)
-INT31 = const(2147483647)     # largest sequence number, time or odometer value
-
-MODES = ("idle", "run", "stop", "trip")
-FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "cmd_timeout", "cmd_reject", "broker_lost",
-          "guard")
-
 
 
 class WireError(ValueError):
@@ -43,22 +42,15 @@ class WireError(ValueError):
 
 
 def topic_report(train_id):
-    return "cbtc/train/" + train_id + "/report"
+    return "cbtc/train/%s/report" % train_id
 
 
 def topic_command(train_id):
-    return "cbtc/train/" + train_id + "/cmd"
+    return "cbtc/train/%s/cmd" % train_id
 
 
 def topic_status(train_id):
-    return "cbtc/train/" + train_id + "/status"
-
-
-def topic_zone_status(zone_id):
-    return "cbtc/zc/" + zone_id + "/status"
-
-
-REPORT_FILTER = "cbtc/train/+/report"
+    return "cbtc/train/%s/status" % train_id
 
 
 def train_id_of(topic):
@@ -74,54 +66,42 @@ def check_train_id(train_id):
     if not isinstance(train_id, str) or not 1 <= len(train_id) <= _ID_MAX_LEN:
         raise WireError("train id %r must be a string of 1-%d characters" % (train_id, _ID_MAX_LEN))
     for ch in train_id:
-        if ch not in "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-":
+        if not ("A" <= ch <= "Z" or "a" <= ch <= "z" or "0" <= ch <= "9" or ch in "_-"):
             raise WireError("train id %r has %r: use letters, digits, '_' or '-'" % (train_id, ch))
     return train_id
 
 
 # --- authentication -------------------------------------------------------------------------------------------
 
-def hmac_sha256(key, msg):
-    """HMAC-SHA256 (RFC 2104) from hashlib alone: MicroPython has no hmac module."""
-    if len(key) > 64:
-        key = hashlib.sha256(key).digest()
-    pad = bytearray(64)          # the key padded to the 64-byte block, then XORed in place with ipad, then opad
-    pad[:len(key)] = key
-    for i in range(64):
-        pad[i] ^= 0x36
-    inner = hashlib.sha256(pad)
-    inner.update(msg)
-    for i in range(64):
-        pad[i] ^= 0x6A           # 0x36 ^ 0x6A == 0x5C: ipad becomes opad
-    outer = hashlib.sha256(pad)
+_PADS = {}   # key -> its two padded blocks (inner, outer): made once per key, a train's key never changes
+
+
+def hmac_sha256(key, *parts):
+    """HMAC-SHA256 (RFC 2104) with `key` (bytes) of the concatenated `parts` (bytes) from hashlib alone: MicroPython
+    has no hmac module. The key's padded blocks are computed once per key, so a message costs two SHA-256 runs."""
+    pads = _PADS.get(key)
+    if pads is None:
+        block = hashlib.sha256(key).digest() if len(key) > 64 else key
+        pads = bytearray(128)   # the key padded to the 64-byte block, XORed with ipad, then again with opad
+        pads[:len(block)] = block
+        pads[64:64 + len(block)] = block
+        for i in range(64):
+            pads[i] ^= 0x36
+            pads[64 + i] ^= 0x5C
+        if len(_PADS) >= 16:   # the controller sees one key per train; never let the cache grow without bound
+            _PADS.clear()
+        _PADS[key] = pads = (bytes(pads[:64]), bytes(pads[64:]))
+    inner = hashlib.sha256(pads[0])
+    for part in parts:
+        inner.update(part)
+    outer = hashlib.sha256(pads[1])
     outer.update(inner.digest())
     return outer.digest()
 
 
 def seal(key, topic, body):
     """Payload bytes for `body` (bytes) on `topic`, authenticated with `key` (bytes)."""
-    return body + b"#" + binascii.hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:_MAC_BYTES])
-
-
-def open_sealed(key, topic, payload):
-    """The body of an authenticated payload, or WireError if the payload is malformed or its MAC is wrong."""
-    if not isinstance(payload, (bytes, bytearray)):
-        raise WireError("payload on %s is %s, not bytes" % (topic, type(payload).__name__))
-    if len(payload) > _MAX_PAYLOAD:
-        raise WireError("payload on %s is %d bytes, over the %d-byte limit" % (topic, len(payload), _MAX_PAYLOAD))
-    payload = bytes(payload)
-    cut = payload.rfind(b"#")
-    if cut < 0:
-        raise WireError("payload on %s has no '#<mac>' authentication suffix" % topic)
-    body = payload[:cut]
-    sealed = seal(key, topic, body)
-    diff = len(sealed) ^ len(payload)   # constant-time comparison of the received MAC with ours
-    if not diff:
-        for i in range(cut, len(sealed)):
-            diff |= sealed[i] ^ payload[i]
-    if diff:
-        raise WireError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
-    return body
+    return body + b"#" + binascii.hexlify(hmac_sha256(key, topic.encode(), b"\n", body)[:_MAC_BYTES])
 
 
 # --- validation -----------------------------------------------------------------------------------------------
@@ -138,11 +118,27 @@ def check_ints(values, specs, topic, field=None):
                                value))
 
 
-def _decode(key, topic, payload, kind, specs):
-    """The validated message dict of a sealed payload of `kind` ("rep" or "cmd") with header v, k, id and the
-    integer fields of `specs` (see check_ints)."""
+def decode_sealed(key, topic, payload, kind, specs):
+    """The validated message dict of a sealed payload of `kind` ("rep" or "cmd") on `topic`: authenticated with
+    `key`, a JSON object with header v, k, id and the integer fields of `specs` (see check_ints); WireError naming
+    the problem otherwise."""
     train_id = train_id_of(topic)
-    body = open_sealed(key, topic, payload)
+    if not isinstance(payload, (bytes, bytearray)):
+        raise WireError("payload on %s is %s, not bytes" % (topic, type(payload).__name__))
+    if len(payload) > _MAX_PAYLOAD:
+        raise WireError("payload on %s is %d bytes, over the %d-byte limit" % (topic, len(payload), _MAX_PAYLOAD))
+    payload = bytes(payload)
+    cut = payload.rfind(b"#")
+    if cut < 0:
+        raise WireError("payload on %s has no '#<mac>' authentication suffix" % topic)
+    body = payload[:cut]
+    sealed = seal(key, topic, body)
+    diff = len(sealed) ^ len(payload)   # constant-time comparison of the received MAC with ours
+    if not diff:
+        for i in range(cut, len(sealed)):
+            diff |= sealed[i] ^ payload[i]
+    if diff:
+        raise WireError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     try:
         msg = json.loads(body)
     except ValueError:
@@ -162,9 +158,10 @@ def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq
     """Sealed report payload.
 
     t_ms: board uptime (ms) when sampled; odo_mm: encoder odometer (mm); v_mmps: encoder speed (mm/s);
-    duty_pct: motor duty (%); mode: one of MODES; cseq: seq of the last accepted command (-1 if none);
+    duty_pct: motor duty (%); mode: one of MODES (wire_zc.py); cseq: seq of the last accepted command (-1 if none);
     ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report, stamped on the board's clock);
-    tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from FAULTS;
+    tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from FAULTS
+    (wire_zc.py);
     rng: None or [t_ms, gap_mm], the newest gap to the train ahead measured by the onboard ranging since the last
     report (board clock; gap from this head to the leader's tail, mm).
     """
@@ -175,32 +172,18 @@ def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq
     return seal(key, topic_report(train_id), json.dumps(msg).replace(" ", "").encode())
 
 
-def decode_report(key, topic, payload):
-    """The report dict of a sealed payload, validated; WireError with the reason otherwise."""
-    from wire_report import check_report   # only the controller decodes reports: kept out of the board's heap
-
-    return check_report(_decode(key, topic, payload, "rep", (
-        "seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31, "v_mmps", -20000, 20000, "duty", -100, 100,
-        "cseq", -1, INT31)), topic)
-
-
 # --- commands --------------------------------------------------------------------------------------------------
-
-def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2):
-    """Sealed command payload.
-
-    sid: the controller's session id (a new random int each start); seq: increasing within a session;
-    rseq: the report this command is based on; v_mmps: speed ceiling (mm/s, >= 0); eoa_mm: end of authority as a
-    value of the train's own odometer (mm) that its head must not pass; ttl_ms: validity, counted on the board's clock
-    from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and service deceleration to use (mm/s^2).
-    """
-    msg = {"v": VERSION, "k": "cmd", "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
-           "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2}
-    return seal(key, topic_command(train_id), json.dumps(msg).replace(" ", "").encode())
-
 
 def decode_command(key, topic, payload):
     """The command dict of a sealed payload, validated; WireError with the reason otherwise."""
-    return _decode(key, topic, payload, "cmd", ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31,
-                                                "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31, "ttl_ms", 1, 10000,
-                                                "acc", 1, 10000, "dec", 1, 10000))
+    return decode_sealed(key, topic, payload, "cmd", ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31,
+                                                      "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31, "ttl_ms", 1, 10000,
+                                                      "acc", 1, 10000, "dec", 1, 10000))
+
+
+def __getattr__(name):
+    """The zone controller's half of the protocol (wire_zc.py: report decoding, command encoding, zone topics, the
+    mode and fault names) is loaded on first use, so it never takes a board's heap."""
+    import wire_zc
+
+    return getattr(wire_zc, name)

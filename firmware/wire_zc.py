@@ -1,10 +1,13 @@
-"""Validation of a report's body fields beyond its header and integers (see wire.decode_report).
+"""The zone controller's half of the wire protocol (wire.py): report decoding and validation, command encoding, zone
+topics, the mode and fault names.
 
-Part of the wire protocol (wire.py), in a module of its own because only the zone controller decodes reports:
-wire.decode_report imports it on first use, so a board never loads it into its small heap.
+Part of the one protocol definition, in a module of its own because a board never needs it: wire.py reaches these
+names on first use (`wire.decode_report`, `wire.MODES`), so a board never loads this module into its small heap.
 """
 
-from wire import FAULTS, INT31, MAX_TAGS, MODES, WireError, check_ints
+import json
+
+from wire import INT31, MAX_TAGS, VERSION, WireError, check_ints, decode_sealed, seal, topic_command
 
 try:
     from micropython import const
@@ -13,6 +16,24 @@ except ImportError:  # CPython
         return value
 
 _POS_MM = const(1000000)   # IPS coordinates stay within +-1 km (mm)
+
+MODES = ("idle", "run", "stop", "trip")
+FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "cmd_timeout", "cmd_reject", "broker_lost",
+          "guard")
+REPORT_FILTER = "cbtc/train/+/report"
+
+
+def topic_zone_status(zone_id):
+    return "cbtc/zc/" + zone_id + "/status"
+
+
+# --- reports ---------------------------------------------------------------------------------------------------
+
+def decode_report(key, topic, payload):
+    """The report dict of a sealed payload, validated; WireError with the reason otherwise."""
+    return check_report(decode_sealed(key, topic, payload, "rep", (
+        "seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31, "v_mmps", -20000, 20000, "duty", -100, 100,
+        "cseq", -1, INT31)), topic)
 
 
 def _null_or_ints(msg, field, specs, topic):
@@ -36,11 +57,14 @@ def check_report(msg, topic):
     _null_or_ints(msg, "ips", ("t_ms", 0, INT31, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic)
     tags = msg.get("tags")
     if not isinstance(tags, list) or len(tags) > MAX_TAGS:
-        raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms]" % (topic, MAX_TAGS))
+        raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms(, data)]"
+                        % (topic, MAX_TAGS))
     for tag in tags:
-        if (not isinstance(tag, list) or len(tag) != 3 or not isinstance(tag[0], str)
-                or not isinstance(tag[1], int) or not isinstance(tag[2], int)):
-            raise WireError("entry %r of 'tags' on %s must be [uid_hex, odo_mm, t_ms]" % (tag, topic))
+        if (not isinstance(tag, list) or not 3 <= len(tag) <= 4 or not isinstance(tag[0], str)
+                or not isinstance(tag[1], int) or not isinstance(tag[2], int)
+                or (len(tag) == 4 and not (isinstance(tag[3], str) and len(tag[3]) == 32))):
+            raise WireError("entry %r of 'tags' on %s must be [uid_hex, odo_mm, t_ms] or [uid_hex, odo_mm, t_ms, "
+                            "data: 32 hex digits of the balise telegram]" % (tag, topic))
     _null_or_ints(msg, "rng", ("t_ms", 0, INT31, "gap_mm", -100000, _POS_MM), topic)
     faults = msg.get("flt")
     bad = not isinstance(faults, list)
@@ -49,3 +73,18 @@ def check_report(msg, topic):
     if bad:
         raise WireError("field 'flt' on %s must list fault names from %s" % (topic, ", ".join(FAULTS)))
     return msg
+
+
+# --- commands --------------------------------------------------------------------------------------------------
+
+def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2):
+    """Sealed command payload.
+
+    sid: the controller's session id (a new random int each start); seq: increasing within a session;
+    rseq: the report this command is based on; v_mmps: speed ceiling (mm/s, >= 0); eoa_mm: end of authority as a
+    value of the train's own odometer (mm) that its head must not pass; ttl_ms: validity, counted on the board's clock
+    from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and service deceleration to use (mm/s^2).
+    """
+    msg = {"v": VERSION, "k": "cmd", "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
+           "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2}
+    return seal(key, topic_command(train_id), json.dumps(msg).replace(" ", "").encode())

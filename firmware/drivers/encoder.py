@@ -38,13 +38,13 @@ class Encoder:
             pin_a.irq(trigger=trigger, handler=self._quad_edge)
             pin_b.irq(trigger=trigger, handler=self._quad_edge)
 
-    def _edge(self, _pin):
+    def _edge(self, _):
         level = self.pin_a.value()
         if level != self._level_a:
             self._level_a = level
             self._count += 1
 
-    def _quad_edge(self, _pin):
+    def _quad_edge(self, _):
         state = (self.pin_a.value() << 1) | self.pin_b.value()
         self._count += _QUAD[(self._state << 2) | state]
         self._state = state

@@ -62,20 +62,38 @@ _WAIT_LOOPS = const(400)      # register polls before a transceive is given up
 
 
 class Mfrc522:
+    # state every reader starts with (class attributes: an instance pays for one only once it changes it)
+    version = 0               # VersionReg as read at start
+    present = False           # a known chip answered and was set up
+    _last_poll_ms = None
+    _last_uid = None
+    _last_seen_ms = 0
+
     def __init__(self, spi, cs, rst):
         self.spi = spi
         self.cs = cs
         self.rst = rst
         self._tx = bytearray(2)
         self._rx = bytearray(2)
-        self.version = 0
-        self.present = False
-        self._last_poll_ms = None
-        self._last_uid = None
-        self._last_seen_ms = 0
         try:
-            self._start()
-        except OSError:
+            cs.value(1)
+            rst.value(1)
+            self.version = self._read(_VERSION)
+            if self.version not in (0x91, 0x92, 0x88, 0x12):   # MFRC522 v1.0, v2.0, FM17522 clone, another clone
+                return
+            self._write(_COMMAND, _CMD_SOFT_RESET)
+            for _ in range(_WAIT_LOOPS):
+                if not self._read(_COMMAND) & _POWER_DOWN:
+                    break
+            self._write(_T_MODE, 0x8D)        # timer starts after sending; prescaler 0xD3E: 2 kHz ticks
+            self._write(_T_PRESCALER, 0x3E)
+            self._write(_T_RELOAD_H, 0)
+            self._write(_T_RELOAD_L, 10)      # 10 ticks: 5 ms answer timeout
+            self._write(_TX_ASK, 0x40)
+            self._write(_MODE, 0x3D)          # CRC preset 0x6363 (ISO 14443A)
+            self._write(_TX_CONTROL, self._read(_TX_CONTROL) | _ANTENNA_ON)
+            self.present = True
+        except OSError:   # the bus failed: no reader
             self.present = False
 
     # --- registers ---------------------------------------------------------------------------------------
@@ -99,32 +117,7 @@ class Mfrc522:
             self.cs.value(1)
         return self._rx[1]
 
-    def _set_bits(self, reg, mask):
-        self._write(reg, self._read(reg) | mask)
-
-    def _clear_bits(self, reg, mask):
-        self._write(reg, self._read(reg) & (0xFF ^ mask))
-
-    # --- chip ----------------------------------------------------------------------------------------------
-
-    def _start(self):
-        self.cs.value(1)
-        self.rst.value(1)
-        self.version = self._read(_VERSION)
-        if self.version not in (0x91, 0x92, 0x88, 0x12):   # MFRC522 v1.0, v2.0, FM17522 clone, another clone
-            return
-        self._write(_COMMAND, _CMD_SOFT_RESET)
-        for _ in range(_WAIT_LOOPS):
-            if not self._read(_COMMAND) & _POWER_DOWN:
-                break
-        self._write(_T_MODE, 0x8D)        # timer starts after sending; prescaler 0xD3E: 2 kHz ticks
-        self._write(_T_PRESCALER, 0x3E)
-        self._write(_T_RELOAD_H, 0)
-        self._write(_T_RELOAD_L, 10)      # 10 ticks: 5 ms answer timeout
-        self._write(_TX_ASK, 0x40)
-        self._write(_MODE, 0x3D)          # CRC preset 0x6363 (ISO 14443A)
-        self._set_bits(_TX_CONTROL, _ANTENNA_ON)
-        self.present = True
+    # --- tags ----------------------------------------------------------------------------------------------
 
     def _transceive(self, data, tx_last_bits):
         """Send `data` (bytes), last byte with `tx_last_bits` bits (0 = 8); the answer bytes or None."""
@@ -135,13 +128,13 @@ class Mfrc522:
             self._write(_FIFO_DATA, byte)
         self._write(_BIT_FRAMING, tx_last_bits)
         self._write(_COMMAND, _CMD_TRANSCEIVE)
-        self._set_bits(_BIT_FRAMING, _START_SEND)
+        self._write(_BIT_FRAMING, tx_last_bits | _START_SEND)
         irq = 0
         for _ in range(_WAIT_LOOPS):
             irq = self._read(_COM_IRQ)
             if irq & (_IRQ_RX_IDLE | _IRQ_TIMER):
                 break
-        self._clear_bits(_BIT_FRAMING, _START_SEND)
+        self._write(_BIT_FRAMING, tx_last_bits)
         if not irq & _IRQ_RX_IDLE or irq & _IRQ_TIMER:
             return None
         if self._read(_ERROR) & _ERR_FATAL:
@@ -149,9 +142,10 @@ class Mfrc522:
         count = self._read(_FIFO_LEVEL)
         if count > 16:
             return None
-        return bytes(self._read(_FIFO_DATA) for _ in range(count))
-
-    # --- tags ----------------------------------------------------------------------------------------------
+        data = bytearray(count)
+        for i in range(count):
+            data[i] = self._read(_FIFO_DATA)
+        return bytes(data)
 
     def read_uid(self):
         """Upper-case hex UID (8 characters) of a tag in the field, or None (no tag, a garbled answer, no reader)."""

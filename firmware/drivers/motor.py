@@ -16,43 +16,44 @@ _FULL_U16 = const(65535)   # duty_u16 full scale
 _FULL_10 = const(1023)     # ESP8266 duty() full scale
 
 
-def _setter(pwm):
-    """A function that sets `pwm` to a duty given in percent (0..100), rounded to the nearest step."""
-    if hasattr(pwm, "duty_u16"):
-        return lambda pct: pwm.duty_u16((pct * _FULL_U16 + 50) // 100)
-    return lambda pct: pwm.duty((pct * _FULL_10 + 50) // 100)
-
-
 class Motor:
     def __init__(self, pwm_a, pwm_b):
-        self._set_a = _setter(pwm_a)
-        self._set_b = _setter(pwm_b)
+        self.pwm_a = pwm_a
+        self.pwm_b = pwm_b
+        self._u16 = hasattr(pwm_a, "duty_u16")
         self.duty_pct = 0
         self.mode = "coast"
         self.coast()
+
+    def _set(self, pwm, duty_pct):
+        """Set `pwm` to a duty given in percent (0..100), rounded to the nearest step."""
+        if self._u16:
+            pwm.duty_u16((duty_pct * _FULL_U16 + 50) // 100)
+        else:
+            pwm.duty((duty_pct * _FULL_10 + 50) // 100)
 
     def drive(self, duty_pct):
         """Apply a signed duty (%); clamped to [-100, 100]; positive is forward."""
         pct = int(max(-100, min(100, duty_pct)))
         if pct >= 0:
-            self._set_b(0)
-            self._set_a(pct)
+            self._set(self.pwm_b, 0)
+            self._set(self.pwm_a, pct)
         else:
-            self._set_a(0)
-            self._set_b(-pct)
+            self._set(self.pwm_a, 0)
+            self._set(self.pwm_b, -pct)
         self.duty_pct = pct
         self.mode = "drive"
 
     def coast(self):
         """Both inputs low: no drive, no braking."""
-        self._set_a(0)
-        self._set_b(0)
+        self._set(self.pwm_a, 0)
+        self._set(self.pwm_b, 0)
         self.duty_pct = 0
         self.mode = "coast"
 
     def brake(self):
         """Both inputs high: the windings are shorted and brake the motor."""
-        self._set_a(100)
-        self._set_b(100)
+        self._set(self.pwm_a, 100)
+        self._set(self.pwm_b, 100)
         self.duty_pct = 0
         self.mode = "brake"

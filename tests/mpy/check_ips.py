@@ -40,6 +40,11 @@ def position(x_mm, y_mm, z_mm, flags=0, ts=123456):
     return frame(0x0011, struct.pack("<IiiiBBhH", ts, x_mm, y_mm, z_mm, flags, 7, 900, 0))
 
 
+def feed(uart, data):
+    """Bytes arriving on the shim UART's RX."""
+    uart.buf.extend(data)
+
+
 def _ips():
     uart = machine.UART(1, 115200)
     return uart, IpsReceiver(uart)
@@ -57,7 +62,7 @@ def check_ips_one_frame():
     uart, ips = _ips()
     raw = position(1500, -250, 80, flags=0x02)
     assert len(raw) == 5 + 22 + 2
-    uart.feed(raw)
+    feed(uart, raw)
     assert ips.poll(1000) == (1000, 1500, -250, 80, 0x02)
     assert ips.frames_ok == 1 and ips.crc_errors == 0 and ips.garbage_bytes == 0
     assert ips.last_fix_ms == 1000
@@ -68,7 +73,7 @@ def check_ips_split_byte_by_byte():
     uart, ips = _ips()
     raw = position(-7, 8, 9)
     for i, byte in enumerate(raw):
-        uart.feed(bytes([byte]))
+        feed(uart, bytes([byte]))
         fix = ips.poll(2000 + i)
         if i < len(raw) - 1:
             assert fix is None, i
@@ -81,7 +86,7 @@ def check_ips_resync_after_garbage():
     junk = bytes([0x13, 0x37, 0x47, 0x00, 0x99, 0xFE])
     lone = bytes([0xFF])                                  # a sync byte not followed by 0x47
     fake = bytes([0xFF, 0x47, 0x11, 0x00, 0xF0])          # a header with an absurd length
-    uart.feed(junk + lone + fake + position(10, 20, 30))
+    feed(uart, junk + lone + fake + position(10, 20, 30))
     assert ips.poll(50) == (50, 10, 20, 30, 0)
     assert ips.frames_ok == 1 and ips.crc_errors == 0
     assert ips.garbage_bytes == len(junk) + len(lone) + len(fake)
@@ -91,7 +96,7 @@ def check_ips_resync_after_garbage():
     for _ in range(200):
         seed = (seed * 1103515245 + 12345) & 0x7FFFFFFF
         noise.append((seed >> 16) & 0xFF)
-    uart.feed(bytes(noise) + position(11, 21, 31))
+    feed(uart, bytes(noise) + position(11, 21, 31))
     fix = None
     for t in range(60, 70):                              # more than one chunk of UART data
         fix = ips.poll(t) or fix
@@ -103,13 +108,13 @@ def check_ips_bad_crc_rejected():
     uart, ips = _ips()
     bad = bytearray(position(1, 2, 3))
     bad[10] ^= 0x40                                      # a flipped bit in x
-    uart.feed(bytes(bad) + position(4, 5, 6))
+    feed(uart, bytes(bad) + position(4, 5, 6))
     assert ips.poll(7) == (7, 4, 5, 6, 0)
     assert ips.crc_errors == 1 and ips.frames_ok == 1
 
 
 def check_ips_other_code_and_newest_wins():
     uart, ips = _ips()
-    uart.feed(frame(0x0003, bytes(range(16))) + position(1, 1, 1) + position(2, 2, 2))
+    feed(uart, frame(0x0003, bytes(range(16))) + position(1, 1, 1) + position(2, 2, 2))
     assert ips.poll(9) == (9, 2, 2, 2, 0)
     assert ips.other_frames == 1 and ips.frames_ok == 2

@@ -1,4 +1,5 @@
-"""A register-level fake MFRC522 behind the SPI shim (CPython and MicroPython unix port).
+"""A register-level fake MFRC522 that also plays its SPI bus (CPython and MicroPython unix port): hand it to the
+driver as the `spi` (write, write_readinto; transfer(tx) -> rx is one transaction).
 
 It speaks the chip's SPI protocol: the first byte of a transaction is the address (reg << 1) & 0x7E, with 0x80 set
 for a read; in a read the chip answers byte k with the register named by byte k-1. It ignores the bus while chip
@@ -51,6 +52,12 @@ class FakeMfrc522:
             for k in range(1, len(tx)):
                 self._write(reg, tx[k])
         return bytes(rx)
+
+    def write_readinto(self, tx, rx):
+        rx[:] = self.transfer(bytes(tx))
+
+    def write(self, tx):
+        self.transfer(bytes(tx))
 
     def _read(self, reg):
         if self.absent_value is not None:
