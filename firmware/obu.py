@@ -187,7 +187,11 @@ class OnboardUnit:
         try:
             uid = self.rfid.poll(now_ms)
             if uid is not None and len(self._tags) < wire.MAX_TAGS:
-                self._tags.append([uid, self.odo_mm, now_ms])
+                tag = [uid, self.odo_mm, now_ms]
+                data = getattr(self.rfid, "data", None)   # a balise's telegram, 32 hex digits, when the tag has one
+                if data:
+                    tag.append(data)
+                self._tags.append(tag)
         except Exception as exc:
             self._sensor_failed("rfid", exc)
         if self.ranging is not None:

@@ -16,7 +16,8 @@ corrected, every 2-bit error is detected; 3 or more errors are caught by the CRC
 small probability.
 
 Payload profiles:
-  balise      6 bytes: tag id u16, position along the track s_mm u24, flags u8
+  balise      6 bytes: tag id u16, position along the track s_mm u24, flags u8; the 126-bit telegram is stored
+              packed (see pack) in the 16 data bytes of the tag, which the board reads after its UID
   speed code  3 bytes: block id u16, code index u8 (0..7)
 """
 
@@ -133,6 +134,26 @@ def decode(frame):
     if not parity_odd:  # one corrected bit must leave the overall parity odd
         return None, DETECTED
     return data, CORRECTED
+
+
+def pack(frame):
+    """The bits of `frame` packed into bytes, first bit in the most significant bit, the last byte padded with 0:
+    how a balise telegram (126 bits) sits in the 16 data bytes of an NTAG/Ultralight tag (pages 4-7)."""
+    out = bytearray((len(frame) + 7) // 8)
+    for i in range(len(frame)):
+        if frame[i]:
+            out[i >> 3] |= 0x80 >> (i & 7)
+    return bytes(out)
+
+
+def unpack(data, n_bits):
+    """The first `n_bits` bits of the bytes `data` (see pack), as a bytearray of 0/1."""
+    if len(data) * 8 < n_bits:
+        raise ValueError("%d bytes hold fewer than %d bits" % (len(data), n_bits))
+    bits = bytearray(n_bits)
+    for i in range(n_bits):
+        bits[i] = (data[i >> 3] >> (7 - (i & 7))) & 1
+    return bits
 
 
 def balise_payload(tag_id, s_mm, flags):

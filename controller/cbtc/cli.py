@@ -18,6 +18,7 @@ COMMANDS = (
     "fusion",
     "compare",
     "ranging",
+    "balise",
     "guard",
     "flash",
     "calibrate",

@@ -7,6 +7,7 @@ Kalman gain, after an innovation gate. Uncertainty grows with the distance since
 
 import math
 
+from .balise import BaliseReader
 from .estimate import Estimate
 from .ips_frame import ips_to_track
 
@@ -25,12 +26,16 @@ class OdometryEstimator:
         self._var_ref_m2 = 0.0
         self._last = None          # (t_s, odo_mm, v_mps) of the newest report
         self.rejected_ips = 0
-        self.unknown_tags = 0
+        self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout
 
     def _s_and_var(self, odo_mm):
         travel_m = (odo_mm - self._odo_ref_mm) / 1000.0
         var = self._var_ref_m2 + (self.drift_frac * travel_m) ** 2
         return self._s_ref_m + travel_m, var
+
+    @property
+    def unknown_tags(self):
+        return self.balises.counts["unknown"]
 
     def odometer_per_m_low(self, k_sigma: float) -> float:
         """A lower bound of odometer metres per true metre: this estimator does not learn the encoder's scale, so it
@@ -41,13 +46,12 @@ class OdometryEstimator:
         t_s = clock.to_controller_s(report["t_ms"])
         odo_mm = report["odo_mm"]
         v_mps = report["v_mmps"] / 1000.0
-        for uid, tag_odo_mm, _t_ms in report["tags"]:
-            tag = self.layout.tag_by_uid(uid)
-            if tag is None:
-                self.unknown_tags += 1
+        for entry in report["tags"]:
+            tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
+            if tag_s_m is None:
                 continue
-            self._s_ref_m = tag.s_m
-            self._odo_ref_mm = tag_odo_mm
+            self._s_ref_m = tag_s_m
+            self._odo_ref_mm = entry[1]
             self._var_ref_m2 = (self.profile.rfid_range_m ** 2) / 3.0
             self.localized = True
         if report["ips"] is not None:

@@ -1,12 +1,16 @@
 """Simulated drivers: the same duck types as firmware/drivers/, reading a virtual train's true state.
 
 Each sensor model is where the testbed's honesty lives: the encoder drifts (wheel-diameter error, random slip) and
-is quantised to whole counts; the IPS is noisy, late, drops fixes and sometimes jumps; the RFID reader misses tags.
+is quantised to whole counts; the IPS is noisy, late, drops fixes and sometimes jumps; the RFID reader misses tags
+and misreads bits of their telegrams.
 Randomness comes from the numpy Generator handed in, so a seed reproduces a run.
 """
 
 import math
 
+import numpy as np
+
+from . import balise
 from .ips_frame import track_to_ips
 
 
@@ -82,14 +86,18 @@ class SimIps:
 
 
 class SimRfid:
-    """An MFRC522 under the train's head: reads a tag while within `rfid_range_m` of it, once per passage, with misses."""
+    """An MFRC522 under the train's head: reads a tag while within `rfid_range_m` of it, once per passage, with misses.
+    Every tag of the layout is a balise: after a read, `data` holds its telegram (cbtc.balise) as 32 hex digits,
+    each bit read wrong with probability `rfid_bit_error`."""
 
     def __init__(self, profile, layout, rng):
         self._profile = profile
         self._layout = layout
         self._rng = rng
         self._inside = {}   # uid -> True once this passage was decided (read or missed)
+        self._images = {tag.uid: balise.image(i + 1, tag.s_m) for i, tag in enumerate(layout.tags)}
         self.present = True
+        self.data = None
         self._s_m = 0.0
 
     def sense(self, s_m: float) -> None:
@@ -97,6 +105,7 @@ class SimRfid:
         self._s_m = s_m
 
     def poll(self, now_ms: int):
+        self.data = None
         if not self.present:
             return None
         for tag in self._layout.tags:
@@ -109,8 +118,19 @@ class SimRfid:
                 continue
             self._inside[tag.uid] = True
             if self._rng.random() >= self._profile.rfid_miss:
+                self.data = self._read(self._images[tag.uid])
                 return tag.uid
         return None
+
+
+    def _read(self, image):
+        flips = self._rng.random(len(image) * 8) < self._profile.rfid_bit_error
+        if not flips.any():
+            return image.hex()
+        data = bytearray(image)
+        for i in np.flatnonzero(flips):
+            data[i >> 3] ^= 0x80 >> (i & 7)
+        return bytes(data).hex()
 
 
 class SimMotor:

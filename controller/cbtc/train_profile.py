@@ -31,6 +31,7 @@ class TrainProfile:
     ips_outlier: float = 0.01         # probability a fix is an outlier (0.3-1.0 m off)
     rfid_miss: float = 0.05           # probability a tag passage is not read
     rfid_range_m: float = 0.015       # a tag is read while the reader is within this distance of it
+    rfid_bit_error: float = 0.002     # probability each bit of a balise's telegram is read wrong
     reaction_s: float = 0.06          # onboard reaction time counted in the braking curve (3 loops of 20 ms)
 
     def __post_init__(self):
@@ -43,7 +44,7 @@ class TrainProfile:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ConfigError(f"train profile: {name} must be > 0, got {getattr(self, name)}")
-        for name in ("ips_dropout", "ips_outlier", "rfid_miss"):
+        for name in ("ips_dropout", "ips_outlier", "rfid_miss", "rfid_bit_error"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 raise ConfigError(f"train profile: {name} is a probability in [0, 1), got {getattr(self, name)}")
         if self.v_max_mps > self.v_noload_mps:

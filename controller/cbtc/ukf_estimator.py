@@ -17,6 +17,7 @@ import bisect
 import math
 from dataclasses import dataclass, fields
 
+from .balise import BaliseReader
 from .errors import ConfigError
 from .estimate import Estimate
 from .ips_frame import ips_to_track
@@ -117,7 +118,7 @@ class UkfEstimator:
         self.params = make_params(params)
         self.noise = noise_model(profile, self.params)
         self.localized = False
-        self.unknown_tags = 0
+        self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout
         self.late_measurements = 0   # arrived more than history_s after newer ones: dropped
         self._clock = None
         self._events = []            # in time order
@@ -131,6 +132,11 @@ class UkfEstimator:
     @property
     def _newest(self):
         return self._states[-1] if self._states else self._base
+
+    @property
+    def unknown_tags(self):
+        """Tag reads with neither a usable telegram nor an entry in the layout."""
+        return self.balises.counts["unknown"]
 
     @property
     def rejected_ips(self):
@@ -160,7 +166,8 @@ class UkfEstimator:
         state = self._newest or _State(None)
         return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
-                "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements}
+                "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
+                **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
     # --- input ---------------------------------------------------------------------------------------------------------
 
@@ -169,12 +176,11 @@ class UkfEstimator:
         self._clock = board_clock
         t_s = report["t_ms"] / 1000.0
         new = [_Event(t_s, "odo", (report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0))]
-        for uid, tag_odo_mm, tag_t_ms in report["tags"]:
-            tag = self.layout.tag_by_uid(uid)
-            if tag is None:
-                self.unknown_tags += 1
+        for entry in report["tags"]:
+            tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
+            if tag_s_m is None:
                 continue
-            new.append(_Event(tag_t_ms / 1000.0, "tag", (tag.s_m, tag_odo_mm / 1000.0)))
+            new.append(_Event(entry[2] / 1000.0, "tag", (tag_s_m, entry[1] / 1000.0)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
