@@ -163,7 +163,11 @@ class OnboardUnit:
         self._control(now_ms, dt_s)
         if now_ms >= self._next_report_ms:
             self._report(now_ms)
-            self._next_report_ms = now_ms + self.cfg["report_ms"]
+            # keep the cadence (a loop period that does not divide report_ms must not stretch it); restart it after
+            # a stall
+            period = self.cfg["report_ms"]
+            due = self._next_report_ms + period
+            self._next_report_ms = due if due > now_ms else now_ms + period
 
     def _sensor_failed(self, name, exc):
         self.sensor_errors += 1

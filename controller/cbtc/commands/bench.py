@@ -1,8 +1,8 @@
 """`cbtc bench latency`: report -> command round trips through a real MQTT broker, and the controller's compute time.
 
 The zone controller runs in this process, N virtual trains in a second one (each train its own MQTT connection,
-reporting at 10 Hz, report phases spread over the 100 ms as independent boards have them), all through the broker
-on the wall clock; `--broker embedded` starts a private Mosquitto on a free loopback port.
+reporting at the firmware's rate, 20 Hz, report phases spread over the period as independent boards have them), all
+through the broker on the wall clock; `--broker embedded` starts a private Mosquitto on a free loopback port.
 What the controller does: it answers a train's report in its next 10 Hz cycle (the command carries that report's
 seq as `rseq`), and it also answers a report at once by extending the authority of the train behind. So the figures:
 
@@ -30,7 +30,7 @@ import numpy as np
 
 from ..broker_config import MosquittoProcess
 from ..errors import BusError, ConfigError
-from ..firmware_modules import wire
+from ..firmware_modules import obu, wire
 from ..layout import layout_from_dict, load_layout
 from ..live import LiveLoop
 from ..paho_bus import PahoBus
@@ -42,7 +42,7 @@ from .common import print_json
 STRAIGHT_M = 0.128        # LEGO straight, 16 studs
 CURVES_M = 2 * math.pi * 0.32
 ROOM_PER_TRAIN_M = 0.55   # train length + safety margin + slack for queue_scenario
-REPORT_PERIOD_S = 0.1     # the OnboardUnit's report_ms
+REPORT_PERIOD_S = obu.DEFAULTS["report_ms"] / 1000.0   # the OnboardUnit's report period
 TAIL_S = 0.3              # run on after the window so its last commands arrive
 
 
@@ -212,7 +212,7 @@ def run_latency(args):
         if broker is not None:
             broker.kill()
     result.update({"broker": "embedded mosquitto" if broker is not None else url, "trains": args.trains,
-                   "layout": layout.name, "duration_s": args.duration, "report_hz": 10,
+                   "layout": layout.name, "duration_s": args.duration, "report_hz": round(1.0 / REPORT_PERIOD_S, 1),
                    "controller_cycle_hz": round(1.0 / config.cycle_s, 3)})
     if args.json:
         print_json(result)
