@@ -32,8 +32,11 @@ DEFAULTS = {
 }
 
 
-def load_config():
-    """DEFAULTS overridden by train_config.CONFIG; ValueError naming the key if something is missing or unknown."""
+def start(now, version, sleep_ms):
+    """Config, drivers (motor braked), Wi-Fi (`now()` gives board ms); returns (cfg, drivers dict: see
+    board.make_drivers). Prints the boot line `lego-cbtc train <id> boot <version>` that `cbtc flash` waits for.
+    The config is DEFAULTS overridden by train_config.CONFIG; ValueError naming the key if one is missing or unknown.
+    Wi-Fi: join the configured network, retrying until it works (the train is braked meanwhile)."""
     try:
         from train_config import CONFIG
     except ImportError:
@@ -49,34 +52,21 @@ def load_config():
             raise ValueError("train_config.py: %r is required" % name)
     if len(cfg["key_hex"]) != 32:
         raise ValueError("train_config.py: 'key_hex' must be 32 hex digits (16 bytes)")
-    return cfg
-
-
-def connect_wifi(config, now, sleep_ms):
-    """Join the configured network, retrying until it works (the train is braked meanwhile)."""
-    if not config["wifi_ssid"]:
-        return
-    import network
-
-    sta = network.WLAN(network.STA_IF)
-    sta.active(True)
-    while not sta.isconnected():
-        print("wifi: joining %s" % config["wifi_ssid"])
-        sta.connect(config["wifi_ssid"], config["wifi_password"])
-        start_ms = now()
-        while not sta.isconnected() and now() - start_ms < config["wifi_timeout_ms"]:
-            sleep_ms(100)
-    print("wifi: %s" % (sta.ifconfig()[0],))
-
-
-def start(now, version, sleep_ms):
-    """Config, drivers (motor braked), Wi-Fi (`now()` gives board ms); returns (cfg, drivers dict: see
-    board.make_drivers). Prints the boot line `lego-cbtc train <id> boot <version>` that `cbtc flash` waits for."""
-    cfg = load_config()
     print("lego-cbtc train %s boot %s" % (cfg["train_id"], version))
     import board
 
     drivers = board.make_drivers()
     gc.collect()
-    connect_wifi(cfg, now, sleep_ms)
+    if cfg["wifi_ssid"]:
+        import network
+
+        sta = network.WLAN(network.STA_IF)
+        sta.active(True)
+        while not sta.isconnected():
+            print("wifi: joining %s" % cfg["wifi_ssid"])
+            sta.connect(cfg["wifi_ssid"], cfg["wifi_password"])
+            start_ms = now()
+            while not sta.isconnected() and now() - start_ms < cfg["wifi_timeout_ms"]:
+                sleep_ms(100)
+        print("wifi: %s" % (sta.ifconfig()[0],))
     return cfg, drivers

@@ -66,7 +66,7 @@ def check_train_id(train_id):
     if not isinstance(train_id, str) or not 1 <= len(train_id) <= _ID_MAX_LEN:
         raise WireError("train id %r must be a string of 1-%d characters" % (train_id, _ID_MAX_LEN))
     for ch in train_id:
-        if not ("A" <= ch <= "Z" or "a" <= ch <= "z" or "0" <= ch <= "9" or ch in "_-"):
+        if ch not in "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-":
             raise WireError("train id %r has %r: use letters, digits, '_' or '-'" % (train_id, ch))
     return train_id
 
@@ -113,9 +113,8 @@ def check_ints(values, specs, topic, field=None):
         name = specs[i]
         value = values.get(name) if field is None else values[i // 3]
         if not isinstance(value, int) or isinstance(value, bool) or not specs[i + 1] <= value <= specs[i + 2]:
-            raise WireError("field %r on %s must be an integer in [%d, %d], got %r"
-                            % (name if field is None else field + "." + name, topic, specs[i + 1], specs[i + 2],
-                               value))
+            raise WireError("field %r on %s must be an integer in [%d, %d], got %r"   # a list item: ('ips', 'x_mm')
+                            % (name if field is None else (field, name), topic, specs[i + 1], specs[i + 2], value))
 
 
 def decode_sealed(key, topic, payload, kind, specs):

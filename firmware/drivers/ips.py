@@ -45,7 +45,7 @@ def crc16_modbus(buf, start, end):
 class IpsReceiver:
     def __init__(self, uart):
         self.uart = uart
-        self._buf = bytearray(_BUF)
+        self.buf = bytearray(_BUF)
         self._len = 0
         self.frames_ok = 0       # valid position frames
         self.crc_errors = 0      # frames with a good header but a wrong CRC
@@ -62,7 +62,7 @@ class IpsReceiver:
             data = self.uart.read(min(waiting, room, _CHUNK))
             if not data:
                 break
-            self._buf[self._len:self._len + len(data)] = data
+            self.buf[self._len:self._len + len(data)] = data
             self._len += len(data)
             waiting -= len(data)
             newest = self._parse(now_ms)
@@ -73,7 +73,7 @@ class IpsReceiver:
         return fix
 
     def _parse(self, now_ms):
-        buf = self._buf
+        buf = self.buf
         n = self._len
         i = 0
         fix = None
