@@ -1,0 +1,63 @@
+"""The board's boot and loop in steps, for the 32-bit heap measurement in the WebAssembly port (tests/test_heap32.py).
+
+The WebAssembly port frees garbage only between calls from JavaScript, so heap32.mjs runs the board's boot halves and
+each pass of its loop as separate calls, with a collection in between: `boot()`, `assemble()`, then `one_pass(ms)`
+repeatedly. Each does what firmware/train.py main() and run() do at that point, on a clock the driver advances.
+"""
+
+import gc
+import sys
+
+import machine
+
+_ = {"ms": 0}
+
+
+def boot(uart_bytes):
+    """The first half of train.main(): startup.start (config, drivers, Wi-Fi), then the boot-only modules leave."""
+    import startup
+    import train
+
+    machine.UART_RX[0] = uart_bytes
+    _["train"] = train
+    _["cfg"], _["drivers"] = startup.start(lambda: _["ms"], train.VERSION, lambda ms: None)
+    for name in ("startup", "board", "train_config", "network"):
+        sys.modules.pop(name, None)
+
+
+def assemble():
+    """The second half: assemble.build (MQTT link, OnboardUnit, watchdog), then assemble leaves."""
+    import assemble
+
+    _["unit"], _["link"], _["wdt"], _["cfg"] = assemble.build(_["cfg"], _["drivers"])
+    sys.modules.pop("assemble")
+    del _["drivers"]
+
+
+def one_pass(now_ms):
+    """One pass of train.run at board time `now_ms`; returns the heap in use at its end, before collection."""
+    _["ms"] = now_ms
+    unit, link = _["unit"], _["link"]
+    try:
+        if link.connected:
+            link.poll(now_ms)
+        elif link.due(now_ms) and unit.motor.mode == "brake":
+            link.connect(now_ms)
+        unit.link_ok = link.connected
+        unit.step(now_ms)
+    except Exception as exc:
+        print("loop: %r" % (exc,))
+        unit.motor.brake()
+    if _["wdt"] is not None:
+        _["wdt"].feed()
+    return gc.mem_alloc()
+
+
+def feed_ips(frame):
+    """Bytes arriving on the IPS UART (the receiver's UART object is the board's)."""
+    _["unit"].ips.uart.buf.extend(frame)
+
+
+def state():
+    unit = _["unit"]
+    return "%s %d %d %d" % (unit.mode, unit.seq, unit.cseq, unit.rejected)
