@@ -1,12 +1,15 @@
-"""NXP MFRC522 13.56 MHz reader on SPI: reads the 4-byte UID of ISO 14443A tags laid between the rails.
+"""NXP MFRC522 13.56 MHz reader on SPI: reads the UID of ISO 14443A tags laid between the rails, and a balise's data.
 
 Mfrc522(spi, cs, rst) takes a ready `machine.SPI` (mode 0, up to 10 MHz, MSB first) and ready output pins for chip
 select and reset. Register access: one SPI transaction per register, address byte (reg << 1) & 0x7E, with 0x80 set to
 read. A reader that does not answer (version register not one of the known chips, or the bus raising OSError) leaves
 `present` False; then `poll` returns None and nothing ever raises.
 
-Only cascade level 1 is run: a 7-byte-UID tag reads as its cascade tag 0x88 and the first three UID bytes, which
-still names the tag on one layout.
+A read runs REQA, then anticollision and SELECT at cascade level 1 and, for a 7-byte UID (NTAG, Ultralight), level
+2. When the tag is a Type 2 tag (SAK 0x00: NTAG213/215, Ultralight), it then READs pages 4-7: a balise's 16 data
+bytes, which hold its Hamming-coded telegram (position and id, see firmware/telegram.py); they are kept as 32 hex
+digits in `data` (None for other tags, such as MIFARE Classic, or when the answer's CRC is wrong). Frames after the
+anticollision carry ISO 14443A's CRC_A, computed and checked here.
 """
 
 try:
@@ -54,17 +57,34 @@ _ANTENNA_ON = const(0x03)     # TxControlReg: TX1 and TX2 on
 # ISO 14443A
 _REQA = const(0x26)           # request (7-bit short frame): idle cards answer with ATQA
 _SEL_CL1 = const(0x93)        # select / anticollision, cascade level 1
+_SEL_CL2 = const(0x95)        # select / anticollision, cascade level 2
 _NVB_ANTICOLL = const(0x20)   # number of valid bits: 2 bytes, ask for the whole UID
+_NVB_SELECT = const(0x70)     # number of valid bits: 7 bytes, select this UID
+_CASCADE_TAG = const(0x88)    # first UID byte at level 1 when the UID goes on at the next level
+_SAK_MORE = const(0x04)       # SAK: the UID is not complete
+_READ = const(0x30)           # Type 2 READ: 4 pages (16 bytes) from the page given
+_BALISE_PAGE = const(4)       # first user page of NTAG/Ultralight: the balise telegram
 
 _POLL_MS = const(50)          # shortest time between two reads (ms)
 _ABSENT_MS = const(300)       # a tag must be gone this long before it is reported again (ms)
 _WAIT_LOOPS = const(400)      # register polls before a transceive is given up
 
 
+def crc_a(data):
+    """ISO 14443A CRC_A of `data`: preset 0x6363, sent low byte first (READ page 0, 30 00, carries 02 A8)."""
+    crc = 0x6363
+    for b in data:
+        b ^= crc & 0xFF
+        b = (b ^ (b << 4)) & 0xFF
+        crc = (crc >> 8) ^ (b << 8) ^ (b << 3) ^ (b >> 4)
+    return crc & 0xFFFF
+
+
 class Mfrc522:
     # state every reader starts with (class attributes: an instance pays for one only once it changes it)
     version = 0               # VersionReg as read at start
     present = False           # a known chip answered and was set up
+    data = None               # the last tag's pages 4-7 as 32 hex digits (a balise), or None
     _last_poll_ms = None
     _last_uid = None
     _last_seen_ms = 0
@@ -140,26 +160,51 @@ class Mfrc522:
         if self._read(_ERROR) & _ERR_FATAL:
             return None
         count = self._read(_FIFO_LEVEL)
-        if count > 16:
+        if count > 18:
             return None
         data = bytearray(count)
         for i in range(count):
             data[i] = self._read(_FIFO_DATA)
         return bytes(data)
 
+    def _call(self, data):
+        """Send `data` with its CRC_A; the answer without its CRC, or None (no answer, or a wrong CRC)."""
+        crc = crc_a(data)
+        answer = self._transceive(data + bytes((crc & 0xFF, crc >> 8)), 0)
+        if answer is None or len(answer) < 3:
+            return None
+        crc = crc_a(answer[:-2])
+        if answer[-2] != crc & 0xFF or answer[-1] != crc >> 8:
+            return None
+        return answer[:-2]
+
     def read_uid(self):
-        """Upper-case hex UID (8 characters) of a tag in the field, or None (no tag, a garbled answer, no reader)."""
+        """Upper-case hex UID (8 or 14 characters) of a tag in the field, or None (no tag, a garbled answer, no
+        reader); `data` then holds a Type 2 tag's pages 4-7 (see the module's description)."""
+        self.data = None
         if not self.present:
             return None
         atqa = self._transceive(bytes((_REQA,)), 7)
         if atqa is None or len(atqa) != 2:
             return None
-        uid = self._transceive(bytes((_SEL_CL1, _NVB_ANTICOLL)), 0)
-        if uid is None or len(uid) != 5:
-            return None
-        if uid[0] ^ uid[1] ^ uid[2] ^ uid[3] != uid[4]:
-            return None
-        return "%02X%02X%02X%02X" % (uid[0], uid[1], uid[2], uid[3])
+        uid = ""
+        for level in (_SEL_CL1, _SEL_CL2):
+            part = self._transceive(bytes((level, _NVB_ANTICOLL)), 0)
+            if part is None or len(part) != 5 or part[0] ^ part[1] ^ part[2] ^ part[3] != part[4]:
+                return None
+            sak = self._call(bytes((level, _NVB_SELECT)) + part)
+            if sak is None or len(sak) != 1:
+                return None
+            more = sak[0] & _SAK_MORE and part[0] == _CASCADE_TAG
+            for byte in part[1:4] if more else part[:4]:
+                uid += "%02X" % byte
+            if not more:
+                break
+        if sak[0] == 0:   # Type 2: read the balise's pages
+            pages = self._call(bytes((_READ, _BALISE_PAGE)))
+            if pages is not None and len(pages) == 16:
+                self.data = "".join("%02x" % byte for byte in pages)
+        return uid
 
     def poll(self, now_ms):
         """Rate-limited read at board time `now_ms` (monotonic ms): a tag's UID once per passage, else None.

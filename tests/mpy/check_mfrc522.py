@@ -6,7 +6,7 @@ The chip is the register-level fake in tests/mpy/fake_mfrc522.py.
 """
 
 import machine
-from drivers.mfrc522 import Mfrc522
+from drivers.mfrc522 import Mfrc522, crc_a
 from fake_mfrc522 import FakeMfrc522
 
 
@@ -86,3 +86,28 @@ def check_mfrc522_other_tag_reported_at_once():
     chip.uid = bytes([5, 6, 7, 8])
     assert reader.poll(20) is None                       # rate limit: 50 ms
     assert reader.poll(50) == "05060708"
+
+
+def check_mfrc522_crc_a():
+    assert crc_a(bytes((0x30, 0x00))) == 0xA802          # READ page 0 is sent as 30 00 02 A8
+    assert crc_a(b"") == 0x6363
+
+
+def check_mfrc522_seven_byte_uid_and_balise_pages():
+    chip, reader, cs, rst = _reader()
+    chip.uid = bytes([0x04, 0x5A, 0x21, 0x8A, 0x6B, 0x51, 0x80])    # an NTAG213
+    image = bytes(range(0xA0, 0xB0))
+    chip.memory[16:32] = image                                     # pages 4-7: the balise telegram
+    assert reader.read_uid() == "045A218A6B5180"
+    assert reader.data == "a0a1a2a3a4a5a6a7a8a9aaabacadaeaf"
+    chip.corrupt_read = True                                       # a bit lost on the air: the CRC says so
+    assert reader.read_uid() == "045A218A6B5180" and reader.data is None
+    chip.uid = None
+    assert reader.read_uid() is None and reader.data is None
+
+
+def check_mfrc522_classic_card_has_no_balise_data():
+    chip, reader, cs, rst = _reader()
+    chip.uid = bytes([0xDE, 0xAD, 0xBE, 0xEF])
+    chip.sak = 0x08                                                # MIFARE Classic 1K: no READ without a key
+    assert reader.read_uid() == "DEADBEEF" and reader.data is None
