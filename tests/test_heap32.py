@@ -7,7 +7,8 @@ the broker in memory (it answers CONNECT and SUBSCRIBE and replies to each repor
 zone controller's encoder); it and umqtt.simple (frozen into a board's ROM) are loaded before the baseline, so they
 are not counted, while the MQTT client object and its buffers are. The port frees garbage only between calls from
 JavaScript, so tests/wasm/heap32.mjs runs the boot halves and each pass of the loop as separate calls
-(tests/wasm/heap_probe.py does what train.main and train.run do), collecting in between.
+(tests/wasm/heap_probe.py does what train.main and train.run do), collecting in between; and since nothing is freed
+inside a call, the heap in use at the end of one is everything that phase allocated: each must stay under 36 KB.
 """
 
 import json
@@ -77,6 +78,9 @@ def test_whole_firmware_fits_an_esp8266_heap_in_32_bit_micropython(tmp_path):
     assert figures["reports_sent"] >= 110 and figures["reports_seen"] == figures["reports_sent"]
     assert figures["last_command_taken"] >= 100 and figures["commands_rejected"] == 0
     assert figures["mode"] == "run"
-    print("32-bit heap: after boot %(after_boot_b)d B, after assembly %(after_assemble_b)d B, loop: live peak "
-          "%(loop_live_peak_b)d B, peak before collection %(loop_peak_before_collection_b)d B" % figures)
-    assert figures["loop_peak_before_collection_b"] < ESP8266_FREE_HEAP_B
+    print("32-bit heap: boot peak %(boot_peak_b)d B (%(after_boot_b)d B kept), assembly peak %(assemble_peak_b)d B "
+          "(%(after_assemble_b)d B kept), loop: live peak %(loop_live_peak_b)d B, peak before collection "
+          "%(loop_peak_before_collection_b)d B" % figures)
+    # the port does not collect inside a call, so each peak counts every byte allocated in that phase or pass
+    for phase in ("boot_peak_b", "assemble_peak_b", "loop_peak_before_collection_b"):
+        assert figures[phase] < ESP8266_FREE_HEAP_B, phase
