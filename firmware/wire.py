@@ -9,8 +9,8 @@ mode and fault names) is wire_zc.py, reached through this module's attributes to
 never loads it.
 
 Topics (train id `T`, zone `Z`):
-  cbtc/train/T/report   board -> controller, 10 Hz, QoS 0
-  cbtc/train/T/cmd      controller -> board, 10 Hz, QoS 0
+  cbtc/train/T/report   board -> controller, 20 Hz, QoS 0
+  cbtc/train/T/cmd      controller -> board, one per report, QoS 0
   cbtc/train/T/status   board's retained "online"/"offline" (last will)
   cbtc/zc/Z/status      controller's retained "online"/"offline" (last will)
 """
