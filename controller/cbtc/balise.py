@@ -8,9 +8,7 @@ the layout, if there is one. A telegram that disagrees with the layout by more t
 moved or the layout is out of date: the read is not used and the mismatch is counted, so nobody trusts either.
 """
 
-from .firmware_modules import FIRMWARE_DIR  # noqa: F401  (puts the firmware folder on sys.path for telegram)
-
-import telegram  # noqa: E402
+from .firmware_modules import telegram
 
 IMAGE_BYTES = 16
 FRAME_BITS = telegram.frame_bits(6)      # 126: the balise telegram
@@ -58,8 +56,8 @@ class BaliseReader:
                 s_m, status = None, telegram.DETECTED
             if s_m is not None:
                 self.counts["telegram_" + status] += 1
-                if listed is not None and abs(self.layout.ahead_m(listed.s_m, s_m)) > MISMATCH_M \
-                        and abs(self.layout.ahead_m(s_m, listed.s_m)) > MISMATCH_M:
+                if listed is not None and min(abs(self.layout.ahead_m(listed.s_m, s_m)),
+                                              abs(self.layout.ahead_m(s_m, listed.s_m))) > MISMATCH_M:
                     self.counts["mismatch"] += 1
                     return None
                 return self.layout.wrap(s_m)

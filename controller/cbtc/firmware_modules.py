@@ -1,4 +1,4 @@
-"""Access to the firmware's own modules (wire protocol, OnboardUnit) from the controller, and to the firmware files.
+"""Access to the firmware's own modules (wire protocol, OnboardUnit, telegrams) from the controller, and to the firmware files.
 
 The firmware is flat MicroPython code (`import wire` on the board). The controller imports the very same files, so
 there is one protocol definition and one OnboardUnit: the firmware folder goes on sys.path once, here.
@@ -17,6 +17,7 @@ if FIRMWARE_DIR not in sys.path:
 
 wire = importlib.import_module("wire")
 obu = importlib.import_module("obu")
+telegram = importlib.import_module("telegram")
 
 
 def firmware_files():

@@ -122,7 +122,6 @@ class SimRfid:
                 return tag.uid
         return None
 
-
     def _read(self, image):
         flips = self._rng.random(len(image) * 8) < self._profile.rfid_bit_error
         if not flips.any():

@@ -9,15 +9,15 @@ Pure apart from its own seeded random source.
 
 import random
 
-from .firmware_modules import FIRMWARE_DIR  # noqa: F401  (puts the firmware folder on sys.path for telegram)
-
-import telegram  # noqa: E402
+from .errors import ConfigError
+from .firmware_modules import telegram
 
 
 class SpeedCodeChannel:
     def __init__(self, ber: float = 0.0, seed: int = 0):
         if not 0.0 <= ber < 0.5:
-            raise ValueError(f"speed-code channel: ber is a bit-error probability in [0, 0.5), got {ber}")
+            raise ConfigError(f"speed-code channel: the bit-error rate (--code-ber) is a probability in [0, 0.5), "
+                              f"got {ber}")
         self.ber = ber
         self._rng = random.Random(seed)
         self.counts = {"sent": 0, "ok": 0, "corrected": 0, "detected": 0, "undetected": 0}

@@ -6,10 +6,8 @@ import numpy as np
 
 from .. import transponder as tp
 from ..errors import ConfigError
-from ..firmware_modules import FIRMWARE_DIR  # noqa: F401  (puts the firmware folder on sys.path for telegram)
+from ..firmware_modules import telegram
 from .common import format_table, print_json
-
-import telegram  # noqa: E402
 
 CODE_BITS = (5, 7, 10)                 # chip lengths 31, 127, 1023
 SNRS_DB = (-20.0, -10.0, 0.0, 10.0)
