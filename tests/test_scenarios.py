@@ -36,6 +36,14 @@ def test_too_many_trains_is_a_clear_error(capsys):
     assert "do not fit" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("argv,named", [(["--report-ms", "50,x"], "--report-ms: 'x'"),
+                                        (["--blocks", "1"], "--blocks: '1'"),
+                                        (["--code-ber", "0.7"], "--code-ber")])
+def test_compare_names_a_bad_setting_before_running(capsys, argv, named):
+    assert cbtc_main(["compare"] + argv) == 2
+    assert named in capsys.readouterr().err
+
+
 def test_moving_block_beats_fixed_block_in_the_paper_scenario():
     systems, _ = run_paper_systems(load_layout("itb_square"), seed=0, laps=3)
     moving, fixed = systems["moving_block"], systems["fixed_block"]

@@ -1,8 +1,10 @@
 """`cbtc compare`: moving block with Takagi control against the fixed-block baseline, on the paper's scenario."""
 
+from ..errors import ConfigError
 from ..headway import PAPER, block_sweep, reductions, run_paper_systems, steady_following
 from ..layout import load_layout
 from ..plots import distance_time_png
+from ..speed_code_channel import SpeedCodeChannel
 from .common import format_table, print_json
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
@@ -26,14 +28,34 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+def _whole_numbers(text, option, minimum, example):
+    """The comma-separated whole numbers of `option`, each at least `minimum`; ConfigError naming the option, the bad
+    item and an example."""
+    values = []
+    for item in text.split(","):
+        if item.strip():
+            try:
+                value = int(item)
+            except ValueError:
+                value = 0
+            if value < minimum:
+                raise ConfigError(f"{option}: {item.strip()!r} is not a whole number >= {minimum}; "
+                                  f"give e.g. {option} {example}")
+            values.append(value)
+    return values
+
+
 def run(args):
+    # every setting is checked before the first (long) run
+    report_periods = _whole_numbers(args.report_ms, "--report-ms", 1, "100,20")
+    counts = _whole_numbers(args.blocks, "--blocks", 2, "2,4,8")
+    SpeedCodeChannel(args.code_ber)
     layout = load_layout(args.layout)
     systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps, code_ber=args.code_ber)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
     following = steady_following(layout, seed=args.seed)
-    periods = [int(c) for c in args.report_ms.split(",") if c.strip()] if args.report_ms else []
-    by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in periods]
-    counts = [int(c) for c in args.blocks.split(",") if c.strip()] if args.blocks else []
+    by_period = [steady_following(layout, seed=args.seed, report_ms=ms)
+                 for ms in report_periods]
     sweep = block_sweep(layout, counts, seed=args.seed) if counts else []
     result = {"layout": layout.name, "seed": args.seed, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
