@@ -6,7 +6,8 @@ each MQTT message; `now_ms` is a monotonic, non-wrapping board time in ms. Nothi
 
 What one step does: sample the encoder, the IPS and the RFID reader; supervise the movement authority (the end of
 authority is a value of the train's own odometer, so it holds between commands); ramp a speed reference under the
-braking curve to that end; run the speed PI loop to a motor duty; report at a fixed rate. When the newest valid command
+service braking curve to that end and to the stop target (a station: a service stop, not supervised by the trip
+curve); run the speed PI loop to a motor duty; report at the rate the controller asks for (or `report_ms`). When the newest valid command
 has expired, the target speed is zero: the train brakes to a stop and stays braked. If the speed ever exceeds the
 braking curve by a margin, the unit trips: motor brake until standstill.
 
@@ -28,7 +29,7 @@ except ImportError:  # CPython
 
 DEFAULTS = {
     "counts_per_m": 1000,     # encoder counts per metre of travel (calibrate: cbtc calibrate encoder)
-    "report_ms": 50,          # report period (ms): the data age of the train behind depends on it
+    "report_ms": 50,          # report period (ms) unless a valid command asks for another (`rpt_ms`)
     "v_max_mmps": 600,        # line speed ceiling of this train (mm/s)
     "v_noload_mmps": 750,     # speed at 100 % duty, for the PI feed-forward (mm/s)
     "acc_mmps2": 600,         # acceleration when a command does not say (mm/s^2)
@@ -163,9 +164,11 @@ class OnboardUnit:
         self._control(now_ms, dt_s)
         if now_ms >= self._next_report_ms:
             self._report(now_ms)
-            # keep the cadence (a loop period that does not divide report_ms must not stretch it); restart it after
-            # a stall
+            # keep the cadence (a loop period that does not divide the report period must not stretch it); restart
+            # it after a stall. The controller asks for faster reports while a train behind follows this one closely
             period = self.cfg["report_ms"]
+            if self.command_valid(now_ms) and self.cmd["rpt_ms"]:
+                period = self.cmd["rpt_ms"]
             due = self._next_report_ms + period
             self._next_report_ms = due if due > now_ms else now_ms + period
 
@@ -227,8 +230,13 @@ class OnboardUnit:
 
     def braking_curve_mmps(self, dec_mmps2):
         """The service curve: highest speed (mm/s) from which braking at `dec_mmps2` stops the train at its end of
-        authority, less the stop window. The speed loop rides it; safety rests on the trip curve above it."""
-        dist_mm = self.eoa_mm - self.odo_mm - self.cfg["stop_window_mm"]
+        authority less the stop window, and at its stop target. The speed loop rides it; safety rests on the trip
+        curve above it, which supervises the end of authority alone (a station stop is service, not safety)."""
+        end_mm = self.eoa_mm - self.cfg["stop_window_mm"]
+        cmd = self.cmd
+        if cmd is not None and cmd["stop_mm"] < end_mm:   # the stop target of the newest command (a station)
+            end_mm = cmd["stop_mm"]
+        dist_mm = end_mm - self.odo_mm
         if dist_mm <= 0:
             return 0.0
         v = sqrt(2.0 * dec_mmps2 * dist_mm)

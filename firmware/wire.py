@@ -177,7 +177,8 @@ def decode_command(key, topic, payload):
     """The command dict of a sealed payload, validated; WireError with the reason otherwise."""
     return decode_sealed(key, topic, payload, "cmd", ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31,
                                                       "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31, "ttl_ms", 1, 10000,
-                                                      "acc", 1, 10000, "dec", 1, 10000))
+                                                      "acc", 1, 10000, "dec", 1, 10000,
+                                                      "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000))
 
 
 def __getattr__(name):

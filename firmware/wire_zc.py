@@ -77,14 +77,19 @@ def check_report(msg, topic):
 
 # --- commands --------------------------------------------------------------------------------------------------
 
-def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2):
+def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm=None,
+                   rpt_ms=0):
     """Sealed command payload.
 
     sid: the controller's session id (a new random int each start); seq: increasing within a session;
     rseq: the report this command is based on; v_mmps: speed ceiling (mm/s, >= 0); eoa_mm: end of authority as a
-    value of the train's own odometer (mm) that its head must not pass; ttl_ms: validity, counted on the board's clock
-    from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and service deceleration to use (mm/s^2).
+    value of the train's own odometer (mm) that its head must not pass (supervised by the trip curve); ttl_ms:
+    validity, counted on the board's clock from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and
+    service deceleration to use (mm/s^2); stop_mm: a service stop target (odometer mm: a station), braked to at the
+    service rate and held, not supervised by the trip curve (None: no stop short of eoa_mm); rpt_ms: the report
+    period the controller asks for while this command is valid (ms; 0: the board's own).
     """
     msg = {"v": VERSION, "k": "cmd", "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
-           "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2}
+           "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
+           "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms}
     return seal(key, topic_command(train_id), json.dumps(msg).replace(" ", "").encode())

@@ -85,6 +85,17 @@ def test_moving_block_distance_subtracts_margin_and_uncertainty():
     assert moving_block_distance_m(1.0, 0.03, 0.04, p) == pytest.approx(0.75)
 
 
+def test_stale_leader_data_shrinks_the_moving_block_distance():
+    p = AuthorityParams(margin_m=0.1, k_sigma=3.0, stale_after_s=0.2, rollback_mps=0.05)
+    fresh = moving_block_distance_m(1.0, 0.03, 0.04, p, leader_age_s=0.05)
+    assert fresh == pytest.approx(0.75), "data younger than stale_after_s costs nothing"
+    # 1.2 s old: 1.0 s beyond stale_after_s at 0.05 m/s -> 5 cm less
+    assert moving_block_distance_m(1.0, 0.03, 0.04, p, leader_age_s=1.2) == pytest.approx(0.70)
+    ages = [0.1 * k for k in range(40)]
+    distances = [moving_block_distance_m(1.0, 0.03, 0.04, p, leader_age_s=a) for a in ages]
+    assert all(b <= a for a, b in zip(distances, distances[1:]))
+
+
 def test_braking_curve_counts_dead_time():
     # 0.5 m ahead, at 0.4 m/s with 0.25 s dead time: 0.4 m usable -> sqrt(2 * 0.8 * 0.4) = 0.8 m/s
     assert braking_curve_speed_mps(0.5, 0.4, 0.8, 0.25) == pytest.approx(math.sqrt(0.64))

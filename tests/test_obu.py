@@ -32,12 +32,13 @@ class Bench:
     def last_report(self):
         return wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])
 
-    def command(self, v_mmps=500, eoa_mm=5000, ttl_ms=800, sid=1, seq=None, rseq=None, key=KEY):
+    def command(self, v_mmps=500, eoa_mm=5000, ttl_ms=800, sid=1, seq=None, rseq=None, key=KEY, stop_mm=None,
+                rpt_ms=0):
         if seq is None:
             self.cmd_seq += 1
             seq = self.cmd_seq
         rseq = self.last_report()["seq"] if rseq is None else rseq
-        payload = wire.encode_command(key, "A", seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800)
+        payload = wire.encode_command(key, "A", seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800, stop_mm, rpt_ms)
         self.unit.on_message(CMD, payload, self.now_ms)
         return payload
 
@@ -184,3 +185,62 @@ def test_riding_the_curve_behind_a_moving_limit_is_takagi_synchronisation():
     assert worst < 20.0, "the follower left the eq. 24 trajectory by %.1f mm/s" % worst   # 3 % of 600 mm/s
     assert unit.v_ref_mmps == pytest.approx(200.0, abs=10.0)
     assert abs(unit.braking_curve_mmps(beta) - unit.v_ref_mmps) < 10.0
+
+
+def test_a_station_stop_is_a_service_target_that_never_trips():
+    """The stop target (a station) is braked to at the service rate and held; moving it back (the controller's
+    position of the train was corrected at a balise) makes the train brake harder, never trip: the trip curve
+    supervises the end of authority alone."""
+    bench = Bench()
+    unit = bench.unit
+    bench.step()
+    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=1500, ttl_ms=10_000)
+    for _ in range(150):
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+        if unit.odo_mm > 1200:
+            break
+    assert unit.v_ref_mmps > 200, "running towards the station"
+    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=unit.odo_mm + 30, ttl_ms=10_000)   # the station is nearer
+    for _ in range(100):
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+    assert unit.trips == 0 and unit.mode == "run"
+    assert unit.v_ref_mmps == 0 and bench.motor.mode == "brake", "stopped and held at the station"
+    # the same retraction of the end of authority is a safety matter: the trip curve brakes the motor
+    bench2 = Bench()
+    bench2.step()
+    bench2.command(v_mmps=500, eoa_mm=3000, ttl_ms=10_000)
+    for _ in range(150):
+        bench2.step(v_mmps=int(bench2.unit.v_ref_mmps))
+        if bench2.unit.odo_mm > 1200:
+            break
+    bench2.command(v_mmps=500, eoa_mm=bench2.unit.odo_mm + 30, ttl_ms=10_000)
+    bench2.step(v_mmps=int(bench2.unit.v_mmps))
+    assert bench2.unit.trips == 1 and bench2.motor.mode == "brake"
+
+
+def test_a_stop_target_beyond_the_end_of_authority_stops_at_the_end_of_authority():
+    bench = Bench()
+    unit = bench.unit
+    bench.step()
+    bench.command(v_mmps=500, eoa_mm=1500, stop_mm=4000, ttl_ms=10_000)
+    for _ in range(400):
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+    assert 1400 < unit.odo_mm <= 1500 - unit.cfg["stop_window_mm"] + 1
+
+
+def test_the_report_period_is_the_one_the_controller_asks_for_while_its_command_is_valid():
+    bench = Bench()
+    bench.step()
+    bench.command(rpt_ms=20, ttl_ms=400)
+    for _ in range(3):                       # the report already due at the board's own period, then the new one
+        bench.step()
+    first = len(bench.sent)
+    for _ in range(10):                      # 200 ms at 20 ms a pass: a report every pass
+        bench.step()
+    assert len(bench.sent) - first == 10
+    for _ in range(30):                      # the command expires: back to the board's own 50 ms
+        bench.step()
+    first = len(bench.sent)
+    for _ in range(25):                      # 500 ms
+        bench.step()
+    assert len(bench.sent) - first == 10

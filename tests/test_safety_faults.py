@@ -54,22 +54,32 @@ def test_follower_stops_behind_a_leader_that_stops_dead(square):
     assert gap >= 0.5 * sim.config.params.margin_m, f"follower stopped {gap:.3f} m behind the leader's tail"
 
 
-def test_stale_leader_data_stops_extending_the_authority(square):
+def test_stale_leader_data_shrinks_the_authority(square):
+    """The leader's reports stop reaching the controller (its uplink is lost; it keeps running). The follower's end of
+    authority never extends again, shrinks as the data ages (the leader may have rolled back), and the follower stops
+    short of the end of authority it held when the data went stale, without a collision."""
     sim = two_trains(square, leader_v_mps=0.3)
     run_to(sim, 12.0)
     zc = sim.zc
     eoa_before = zc.trains["B"].eoa_mm
     run_to(sim, 13.0)
     assert zc.trains["B"].eoa_mm > eoa_before, "with fresh data the authority extends as the leader moves"
-    # the leader's reports stop reaching the controller (its uplink is lost); it keeps running
-    sim.broker.set_link("train-A", up=LinkProfile(latency_s=0.004, loss=1.0))
-    run_to(sim, 14.5)
-    frozen = zc.trains["B"].eoa_mm
-    run_to(sim, 20.0)
-    assert zc.trains["B"].eoa_mm <= frozen, "stale data of the train ahead never extends the authority"
     follower = sim.trains[1]
-    assert follower.v_mps == 0.0 and follower.obu.odo_mm <= frozen
-    assert sim.recorder.collisions == [0, 0]
+    assert follower.v_mps > 0.2
+    sim.broker.set_link("train-A", up=LinkProfile(latency_s=0.004, loss=1.0))
+    held = zc.trains["B"].eoa_mm             # in the follower's own odometer frame, like every end of authority
+    limits = []                               # (controller time, end of authority granted)
+    sim.scheduler.call_every(0.05, lambda now: limits.append((now, zc.trains["B"].eoa_mm)), start_s=13.001)
+    run_to(sim, 20.0)
+    eoas = [e for _, e in limits]
+    assert max(eoas) <= held, "stale data of the train ahead never extends the authority"
+    at = {round(t, 1): e for t, e in limits}
+    params = sim.config.params
+    # past stale_after_s the authority shrinks at rollback_mps: 5 cm in the second after 13.5 s
+    assert at[13.5] - at[14.5] >= int(0.9 * params.rollback_mps * 1000), (at[13.5], at[14.5])
+    assert all(b <= a for a, b in zip(eoas, eoas[1:])), "it only ever shrinks"
+    assert follower.v_mps == 0.0 and follower.obu.odo_mm <= held
+    assert sim.recorder.collisions == [0, 0] and sim.recorder.overruns == [0, 0]
 
 
 def test_controller_loss_stops_every_train_within_its_braking_distance(square):

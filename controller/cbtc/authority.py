@@ -1,9 +1,12 @@
 """Movement authority, moving block with the brick-wall assumption: pure functions of estimates and parameters.
 
-The follower's head may advance to the leader's tail as last estimated (the leader can only have moved on since),
-minus the safety margin S_M, minus k standard deviations of the combined uncertainty of both estimates. The onboard
-unit enforces the resulting end of authority with its braking curve (which counts its reaction time); the
-controller also caps the commanded speed on the same curve with communication latency and data age counted.
+The follower's head may advance to the leader's tail as last estimated (brick wall: the leader may have stopped dead
+since, so its position is not extrapolated), minus the safety margin S_M, minus k standard deviations of the combined
+uncertainty of both estimates, minus a rollback allowance that grows with the age of the leader's data: a train not
+heard from for a while may have rolled back or been moved by hand, so stale data shrinks the authority. The onboard
+unit enforces the resulting end of authority with its service and trip curves (the trip curve counts the reaction
+time); the end of authority is a point of the follower's own odometer, so the follower's data age and the command
+latency do not move it.
 """
 
 import math
@@ -17,16 +20,28 @@ class AuthorityParams:
     max_leader_age_s: float = 1.0   # older data of the train ahead: the authority is not extended
     latency_s: float = 0.05         # command delivery latency budget counted in the speed cap
     ttl_s: float = 0.8              # command validity on board, from the report it is based on
+    fast_report_ms: int = 20        # report period asked of a train while the train behind is held by it
+    fast_hold_s: float = 1.0        # ... and for this long after
+    stale_after_s: float = 0.2      # leader data older than this shrinks the authority (several reports + latency)
+    rollback_mps: float = 0.05      # ... by this much per second of age beyond that: how fast a train not heard from
+    #                                 may have moved back (rolled back, pushed by hand)
 
 
 def combined_sigma_m(sigma_follower_m: float, sigma_leader_m: float) -> float:
     return math.sqrt(sigma_follower_m ** 2 + sigma_leader_m ** 2)
 
 
+def rollback_allowance_m(leader_age_s: float, p: AuthorityParams) -> float:
+    """How far (m) behind its last-seen position a train whose data is `leader_age_s` old may be."""
+    return p.rollback_mps * max(0.0, leader_age_s - p.stale_after_s)
+
+
 def moving_block_distance_m(gap_est_m: float, sigma_follower_m: float, sigma_leader_m: float,
-                            p: AuthorityParams) -> float:
-    """Distance (m) the follower's head may still travel, from the estimated gap to the leader's tail."""
-    return gap_est_m - p.margin_m - p.k_sigma * combined_sigma_m(sigma_follower_m, sigma_leader_m)
+                            p: AuthorityParams, leader_age_s: float = 0.0) -> float:
+    """Distance (m) the follower's head may still travel, from the estimated gap to the leader's tail as last seen,
+    whose data is `leader_age_s` old at the time the authority is computed."""
+    return (gap_est_m - p.margin_m - p.k_sigma * combined_sigma_m(sigma_follower_m, sigma_leader_m)
+            - rollback_allowance_m(leader_age_s, p))
 
 
 def braking_curve_speed_mps(distance_m: float, v_now_mps: float, beta_mps2: float, dead_time_s: float) -> float:
@@ -35,6 +50,13 @@ def braking_curve_speed_mps(distance_m: float, v_now_mps: float, beta_mps2: floa
     if usable_m <= 0.0:
         return 0.0
     return math.sqrt(2.0 * beta_mps2 * usable_m)
+
+
+def following_reach_m(profile) -> float:
+    """Distance (m) within which an end of authority limits a train's speed: its braking distance from line speed,
+    the reaction distance, and 5 cm. A train whose authority is shorter is held by the train ahead (it follows)."""
+    v = profile.v_max_mps
+    return v * v / (2.0 * profile.beta_s_mps2) + v * profile.reaction_s + 0.05
 
 
 def minimum_gap_m(v_mps: float, beta_s_mps2: float, margin_m: float) -> float:

@@ -1,7 +1,8 @@
 """The moving-block authority policy: how far each train may go, and how it follows (Takagi control).
 
 Authority: the train ahead's tail as last estimated (not extrapolated: brick wall), less S_M and k sigma of both
-estimates. Control on top of it (paper eqs. 24-26, cbtc.control_laws):
+estimates, less a rollback allowance that grows with the age of the leader's data (stale data shrinks the
+authority: cbtc.authority). Control on top of it (paper eqs. 24-26, cbtc.control_laws):
 - synchronisation: once the usable gap has shrunk to the braking distance of the follower, its deceleration is
   commanded by eq. 24 from both speeds, which holds the gap at S_min(v_B) as both move;
 - departure: when a train stands at minimum distance behind a standing train, the pair departs together with
@@ -51,9 +52,11 @@ class MovingBlockPolicy:
             gap_m -= layout.length_m  # the estimates overlap: negative gap, no authority
         # the follower's own ranging to the leader, when it has one, caps the gap and checks the picture
         gap_m = zc.checked_gap_m(state, gap_m, combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m), now_s)
-        # position and uncertainty as last seen: the leader can only have moved on since (brick wall), so older data
-        # is still safe; it just does not extend the authority (the zone controller holds it while data is stale)
-        return moving_block_distance_m(gap_m, own.sigma_s_m, ahead.sigma_s_m, self.params), ahead.v_mps
+        # the leader where it was last seen (brick wall: it may have stopped dead since, so its position is not
+        # extrapolated); the older that is, the more it may have rolled back: stale data shrinks the authority (and
+        # the zone controller stops extending it at all after max_leader_age_s)
+        age_s = now_s - leader.report_t_s
+        return moving_block_distance_m(gap_m, own.sigma_s_m, ahead.sigma_s_m, self.params, age_s), ahead.v_mps
 
     def authority(self, zc, state, leader, now_s):
         """(distance_m, v_cap_mps, acc_mps2, dec_mps2) for `state`'s train behind `leader` (None: alone)."""

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .authority import AuthorityParams
+from .authority import AuthorityParams, following_reach_m
 from .errors import ConfigError
 from .firmware_modules import wire
 from .mock_broker import LinkProfile, MockBroker
@@ -193,9 +193,7 @@ class Recorder:
                 self._colliding[i] = inside
                 self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
             state = self.sim.zc.trains[train.train_id]
-            p = train.profile
-            reach_m = p.v_max_mps ** 2 / (2 * p.beta_s_mps2) + p.v_max_mps * p.reaction_s + 0.05
-            self.constrained[i].append(state.safe_m is not None and state.safe_m < reach_m)
+            self.constrained[i].append(state.safe_m is not None and state.safe_m < following_reach_m(train.profile))
             over = self.sim.policy.protected_m(layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i]:
                 self.overruns[i] += 1

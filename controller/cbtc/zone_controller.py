@@ -1,9 +1,12 @@
 """The zone controller: reports in, estimates, movement authorities and station stops, commands out.
 
 Thin shell around the pure parts: it talks to a bus client (mock broker or a real MQTT broker: the same interface),
-reads time only from the `now_fn` it is given, and keeps per-train state. Each cycle (10 Hz by default) it orders the
-trains along the track, asks the authority policy how far each may go, folds in the station stops, converts that
-limit into the train's own odometer frame and publishes a sealed command.
+reads time only from the `now_fn` it is given, and keeps per-train state. Each report is answered at once (and each
+cycle, 10 Hz by default, covers the trains whose reports are missing): it orders the trains along the track, asks the
+authority policy how far each may go, converts that limit (the end of authority, supervised on board by the trip
+curve) and the next station stop (a service target) into the train's own odometer frame and publishes a sealed
+command. A train whose follower is held by it is asked for faster reports (`AuthorityParams.fast_report_ms`): its
+follower's authority rests on the age of that data.
 
 A train gets no authority while any configured train is unlocated (it could be anywhere), and no extension while the
 data of the train ahead is stale. Reports that fail validation or come from unknown trains are logged and dropped.
@@ -13,7 +16,7 @@ import logging
 import random
 from dataclasses import dataclass, field
 
-from .authority import AuthorityParams
+from .authority import AuthorityParams, following_reach_m
 from .estimate import BoardClock
 from .firmware_modules import wire
 from .train_profile import TrainProfile
@@ -55,6 +58,8 @@ class TrainState:
         self.stop_overruns = 0
         self.restarts = 0
         self.answered_s = None       # controller time of the last command sent to this train
+        self.fast_until_s = -1.0     # until then this train is asked for fast reports (a train behind follows it)
+        self.stop_m = None           # distance to the service stop target at the last command (m), None: none
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
         self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
         self.gap_alarms = 0
@@ -176,14 +181,18 @@ class ZoneController:
             self._update(state, leader, all_located, now_s)
 
     def _update(self, state, leader, all_located, now_s):
+        stop_m = None
         if all_located:
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
-            distance_m = self._station_stop(state, safe_m, now_s)
+            stop_m = self._station_stop(state, now_s)
+            if leader is not None and safe_m < following_reach_m(state.setup.profile):
+                # this train is held by the one ahead: ask that one for fast reports, for a while
+                leader.fast_until_s = now_s + self.params.fast_hold_s
         else:
-            safe_m = distance_m = None
+            safe_m = None
             v_cap_mps = 0.0
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
-        self._command(state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+        self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
 
     def _answer(self, state, now_s):
@@ -198,11 +207,11 @@ class ZoneController:
         if all_located and len(located) > 1:
             self._update(located[i - 1], state, True, now_s)
 
-    def _station_stop(self, state, distance_m, now_s):
-        """Fold the next scheduled stop into the authority; run the dwell clock."""
+    def _station_stop(self, state, now_s):
+        """Distance (m) to the next scheduled stop, or None (no stop to make now); runs the dwell clock."""
         stops = state.setup.stops
         if not stops:
-            return distance_m
+            return None
         est = state.estimator.estimate(state.report_t_s)
         if state.next_stop is None:
             state.next_stop = self._next_station(est.s_m, stops, at_station_ok=True)
@@ -214,19 +223,19 @@ class ZoneController:
                 state.dwell_until_s = None
                 state.dwells += 1
                 state.next_stop = self._next_station(station.s_m + 0.01, stops)
-                return distance_m
-            return min(distance_m, to_stop_m)
+                return None
+            return to_stop_m
         if standing and abs(to_stop_m) <= station.window_m:
             low, high = state.setup.dwell_s
             state.dwell_until_s = now_s + self._rng.uniform(low, high)
-            return min(distance_m, to_stop_m)
+            return to_stop_m
         if to_stop_m < -station.window_m:
             # passed the stop point beyond its window: count it and move on rather than reverse
             state.stop_overruns += 1
             log.warning("train %s overran station %s by %.3f m", state.train_id, station.name, -to_stop_m)
             state.next_stop = self._next_station(station.s_m + 0.01, stops)
-            return distance_m
-        return min(distance_m, to_stop_m)
+            return None
+        return to_stop_m
 
     def _signed_ahead(self, from_s, to_s):
         """Forward distance from `from_s` to `to_s`; on a loop, a point up to 1 m behind is negative."""
@@ -245,11 +254,14 @@ class ZoneController:
             return self.layout.ahead_m(s_m, station.s_m)
         return min(stops, key=distance)
 
-    def _command(self, state, distance_m, safe_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
-        """Publish the command for `distance_m` (authority with the stop target folded in); `safe_m` is the safety
-        limit alone (None: none granted), kept as `limit_s` on the track for supervision."""
+    def _command(self, state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
+        """Publish the command for the end of authority `safe_m` metres ahead (None: none granted: stop) and the
+        service stop target `stop_m` metres ahead (None: none); the limit is kept as `limit_s` on the track for
+        supervision."""
         report = state.report
         state.safe_m = safe_m
+        state.stop_m = stop_m
+        distance_m = safe_m
         if distance_m is None:
             # no picture of every train: stop now at service rate; the authority never extends
             v_mps = max(0.0, report["v_mmps"] / 1000.0)
@@ -263,6 +275,9 @@ class ZoneController:
         if state.eoa_mm is not None and (distance_m is None or self._leader_stale(state, now_s)):
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
+        # a stop target is service, not safety: the best estimate of the scale, and never beyond the end of authority
+        stop_mm = eoa_mm if stop_m is None else \
+            min(eoa_mm, report["odo_mm"] + int(round(stop_m * state.estimator.odometer_per_m_low(0.0) * 1000.0)))
         est = state.estimator.estimate(state.report_t_s)
         if est is None:
             state.limit_s = None
@@ -270,10 +285,11 @@ class ZoneController:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
         state.cmd_seq += 1
+        rpt_ms = self.params.fast_report_ms if now_s < state.fast_until_s else 0
         payload = wire.encode_command(
             state.setup.key, state.train_id, state.cmd_seq, self.session_id, report["seq"],
             int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
-            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)))
+            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms)
         self.client.publish(wire.topic_command(state.train_id), payload)
 
     def stop_all(self, now_s: float) -> None:
