@@ -310,13 +310,24 @@ class OnboardUnit:
         if self.v_ref_mmps <= 0:   # a standstill target: brake (stop and hold), do not coast
             self._brake()
             return
-        error = self.v_ref_mmps - self.v_mmps
-        self._integral += error * dt_s
-        limit = 100.0 / cfg["ki"]
-        self._integral = max(-limit, min(limit, self._integral))
+        # the measured speed is the mean over the speed window, so it lags half a window: compare it with the
+        # reference of then (ramps would otherwise wind the integral up and overshoot after them)
+        error = self.v_ref_mmps - a_ref * cfg["speed_window_ms"] / 2000.0 - self.v_mmps
+        if a_ref == 0.0:
+            # the integral learns the steady offset (friction, load, a tired battery) at a steady reference only:
+            # through a ramp the feed-forward carries the train, and a traction-limited one would wind it up
+            self._integral += error * dt_s
+            limit = 100.0 / cfg["ki"]
+            self._integral = max(-limit, min(limit, self._integral))
         # feed-forward of speed and acceleration through the first-order motor, then PI on the speed error
         v_ff = self.v_ref_mmps + a_ref * cfg["motor_tau_ms"] / 1000.0
         duty = v_ff * 100.0 / cfg["v_noload_mmps"] + cfg["kp"] * error + cfg["ki"] * self._integral
+        if duty < 0 and self.v_mmps > 0:
+            # the motor's own drag at zero duty (v / tau: weak at low speed) is less braking than the curve asks:
+            # short the windings for this pass (brake: it cannot reverse the train, as a negative duty could)
+            self.duty_pct = 0
+            self.motor.brake()
+            return
         self.duty_pct = int(max(0.0, min(100.0, duty)))
         self.motor.drive(self.duty_pct)
 

@@ -96,3 +96,43 @@ def test_onboard_speed_loop_tracks_the_commanded_speed_on_the_plant():
     assert train.v_mps == 0.0, "it stops at its end of authority"
     assert train.obu.odo_mm <= train.obu.eoa_mm
     assert math.isfinite(train.travelled_m)
+
+
+def test_the_speed_loop_rides_the_service_curve_to_a_standstill_without_tripping():
+    """On the plant: a train at line speed is given an end of authority 0.5 m ahead. At low speed the motor's own drag
+    (v / tau) is less than the service rate, so the loop shorts the windings when it needs more braking; it follows
+    the curve to the stop window's edge and never trips the emergency brake."""
+    sched = VirtualScheduler()
+    broker = MockBroker(sched)
+    key = b"k" * 16
+    train = VirtualTrain("A", key, load_layout("itb_square"), P, 0.0, broker.connect("train"),
+                         np.random.default_rng(1))
+    ctl = broker.connect("ctl")
+    state = {"seq": 0, "eoa_mm": 100_000}
+    modes = []
+
+    def answer(topic, payload):
+        report = wire.decode_report(key, topic, payload)
+        state["seq"] += 1
+        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", state["seq"], 1, report["seq"], 600,
+                                                                 state["eoa_mm"], 800, 600, 800))
+    ctl.subscribe(wire.topic_report("A"), answer)
+    sched.call_every(0.02, train.tick)
+    over = []   # how far the train's speed (odometer units, as the board sees distance) is above its service curve
+
+    def watch(now):
+        modes.append((train.motor.mode, train.motor.duty_pct))
+        odo_per_m = train.encoder.distance_m / max(train.travelled_m, 1e-9)
+        over.append(train.v_mps * odo_per_m * 1000 - train.obu.braking_curve_mmps(train.obu.cfg["dec_mmps2"]))
+    sched.call_every(0.02, watch, start_s=0.011)
+    sched.run_until(5.0)
+    assert train.v_mps > 0.55
+    state["eoa_mm"] = train.obu.odo_mm + 500
+    sched.run_until(9.0)
+    unit = train.obu
+    assert train.v_mps == 0.0 and unit.trips == 0
+    window = unit.cfg["stop_window_mm"]
+    assert state["eoa_mm"] - window - 6 <= unit.odo_mm <= state["eoa_mm"] - window + 1
+    assert "brake" in [mode for mode, _ in modes[250:400]], "more braking than the drag: the short-circuit brake"
+    assert max(over[250:]) < 25.0, "it follows the service curve down to the stop (mm/s above it)"
+    assert all(duty >= 0 for _, duty in modes), "never a negative (reversing) duty"

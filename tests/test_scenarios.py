@@ -31,6 +31,25 @@ def test_sim_three_trains_on_a_lego_layout(capsys):
     assert all(t["distance_m"] > 10 for t in result["trains"])
 
 
+@pytest.mark.parametrize("argv,named", [(["--policy", "fixed_block"], "cannot move"),
+                                        (["--blocks", "12"], "--blocks is for --policy fixed_block")])
+def test_a_fixed_block_gridlock_is_refused_before_it_starts(capsys, argv, named):
+    """Six trains on the six blocks of lego_oval would never move (each holds the block the one behind needs): a clear
+    error naming the fix rather than a silent run with 0 collisions because nothing moved."""
+    assert cbtc_main(["sim", "--trains", "6", "--duration", "5"] + argv) == 2
+    assert named in capsys.readouterr().err
+
+
+def test_how_long_every_train_has_stood_still_flags_a_gridlock():
+    from cbtc.scenario import all_standing_s
+
+    t = [0.0, 1.0, 2.0, 3.0, 4.0]
+    assert all_standing_s(t, [[0.1, 0.2, 0.0, 0.0, 0.0], [0.0, 0.0, 0.3, 0.0, 0.0]]) == 2.0
+    assert all_standing_s(t, [[0.0] * 5, [0.0] * 5]) == 4.0
+    assert all_standing_s(t, [[0.0, 0.0, 0.0, 0.0, 0.5]]) == 0.0
+    assert all_standing_s([], []) == 0.0
+
+
 def test_too_many_trains_is_a_clear_error(capsys):
     assert cbtc_main(["sim", "--layout", "lego_oval", "--trains", "40", "--duration", "5"]) == 2
     assert "do not fit" in capsys.readouterr().err
@@ -58,3 +77,29 @@ def test_steady_following_keeps_a_safe_gap_near_the_theoretical_minimum():
     result = steady_following(load_layout("itb_square"), seed=0, duration_s=45.0, settle_s=20.0)
     assert result["collisions"] == 0 and result["authority_overruns"] == 0
     assert 1.0 <= result["achieved_over_theoretical"] < 1.6
+
+
+def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
+    """The controller asks a train for 20 ms reports while the train behind is held by it: the follower's authority
+    rests on the age of that data. Far apart, both report at the board's own 50 ms."""
+    from cbtc.scenario import ScenarioConfig, Simulation, TrainSpec
+    from cbtc.train_profile import TrainProfile
+
+    layout = load_layout("itb_square")
+    fast, slow = TrainProfile(), TrainProfile().with_changes(v_max_mps=0.3)
+    sim = Simulation(ScenarioConfig(layout=layout, seed=3, duration_s=30.0,
+                                    trains=[TrainSpec("A", layout.wrap(3.0), (), slow), TrainSpec("B", 0.0, (), fast)]))
+
+    def period_ms(train_index, t0_s, t1_s):
+        """Mean report period (board clock) of the reports received between t0_s and t1_s."""
+        reports = [r for t, r in sim.recorder.reports[train_index] if t0_s <= t <= t1_s]
+        return (reports[-1]["t_ms"] - reports[0]["t_ms"]) / (reports[-1]["seq"] - reports[0]["seq"])
+
+    sim.scheduler.run_until(4.0)
+    assert sim.zc.trains["B"].safe_m > 1.0, "B is still far behind A"
+    early = period_ms(0, 2.0, 4.0)
+    sim.scheduler.run_until(30.0)
+    assert sim.zc.trains["B"].safe_m < 0.2, "B has caught up and follows A"
+    assert early == pytest.approx(50, abs=1)
+    assert period_ms(0, 25.0, 30.0) == pytest.approx(20, abs=1)
+    assert period_ms(1, 25.0, 30.0) == pytest.approx(50, abs=1), "nobody follows B"

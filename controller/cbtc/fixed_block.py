@@ -89,7 +89,7 @@ class FixedBlockPolicy:
         blocks = self.blocks(layout)
         own = state.estimator.estimate(state.report_t_s)
         spans = self._spans(zc)
-        clear_ahead, distance_m = self._clear_run(layout, blocks, spans, state.train_id, own.s_m)
+        clear_ahead, distance_m = self.clear_run(layout, blocks, spans, state.train_id, own.s_m)
         code = min(clear_ahead, len(self.speed_codes) - 1)
         i = self._index_at(blocks, layout, own.s_m)
         received = self.codes.transmit(i, code)
@@ -100,7 +100,7 @@ class FixedBlockPolicy:
         code_mps = self.speed_codes[min(received, len(self.speed_codes) - 1)] * profile.v_max_mps
         return distance_m, code_mps, profile.accel_max_mps2, profile.beta_s_mps2
 
-    def _clear_run(self, layout, blocks, spans, train_id, head_s):
+    def clear_run(self, layout, blocks, spans, train_id, head_s):
         """(clear blocks ahead, distance from the head to the first occupied block's entry) for a train at `head_s`.
 
         A block is occupied if any part of another train is in it. If another train stands in the train's own block
@@ -130,5 +130,5 @@ class FixedBlockPolicy:
         in_block = [d for d in ahead if d < to_end_m]
         if in_block:
             return min(in_block) - self.params.margin_m
-        clear, distance_m = self._clear_run(layout, blocks, spans, train_id, head)
+        clear, distance_m = self.clear_run(layout, blocks, spans, train_id, head)
         return distance_m - self.params.margin_m

@@ -6,7 +6,7 @@ the tests and anyone's notebook get the same numbers.
 
 import numpy as np
 
-from .authority import minimum_gap_m
+from .authority import AuthorityParams, minimum_gap_m
 from .firmware_modules import obu
 from .scenario import ScenarioConfig, Simulation, TrainSpec, paper_scenario
 from .train_profile import TrainProfile
@@ -76,65 +76,87 @@ def reductions(moving, fixed):
 
 def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s=25.0, estimator="ukf",
                      report_ms=None):
-    """Train B (line speed 0.6 m/s) catches up with a slower train A and follows it: achieved gap against
-    the theoretical minimum S_M + v^2/(2 beta_s) at the speed B actually runs, sample by sample. `report_ms`: the
-    boards' report period (None: the firmware's default)."""
+    """Train B (line speed 0.6 m/s) catches up with a slower train A and follows it: achieved gap against the
+    theoretical minimum S_M + v^2/(2 beta_s) at the speed B actually runs, sample by sample, and where the rest goes,
+    measured in the run (`overhead_budget_m`, see _overhead_budget). `report_ms`: every report at this period, the
+    fast ones the controller asks of a followed train included (None: the defaults, 50 ms and 20 ms when followed)."""
     fast = TrainProfile()
     slow = fast.with_changes(v_max_mps=leader_v_mps)
     start_b = 0.0
     start_a = layout.wrap(start_b + 1.5)
-    config = ScenarioConfig(layout=layout, seed=seed, duration_s=duration_s, estimator=estimator,
+    params = AuthorityParams() if report_ms is None else AuthorityParams(fast_report_ms=int(report_ms))
+    config = ScenarioConfig(layout=layout, seed=seed, duration_s=duration_s, estimator=estimator, params=params,
                             trains=[TrainSpec("A", start_a, (), slow), TrainSpec("B", start_b, (), fast)],
                             obu_overrides=None if report_ms is None else {"report_ms": int(report_ms)})
     sim = Simulation(config)
-    below_curve = []   # how far the follower rides inside its service curve (m), sampled with the recorder
-    follower = sim.trains[1]
+    leader, follower = sim.trains
+    basis = {}     # command seq sent to B -> (sample time of A's data behind it, combined sigma taken off)
 
-    def probe(_now_s):
+    def on_command(state, _now_s):
+        if state.train_id == follower.train_id:
+            basis[state.cmd_seq] = (state.leader_data_t_s, state.sigma_m)
+
+    rows = []      # one per loop tick: truth and the command B's board obeys
+
+    def probe(now_s):
         unit = follower.obu
-        v_m = max(0, unit.v_mmps) / 1000.0
-        dist_m = (unit.eoa_mm - unit.odo_mm - unit.cfg["stop_window_mm"]) / 1000.0
-        below_curve.append(dist_m - v_m * v_m / (2.0 * unit.cfg["dec_mmps2"] / 1000.0))
+        wheel_per_m = follower.encoder.distance_m / follower.travelled_m if follower.travelled_m > 0 else 1.0
+        gap_m = layout.ahead_m(follower.head_s, leader.tail_s)
+        rows.append((now_s, unit.cseq, (unit.eoa_mm - unit.odo_mm) / 1000.0 / wheel_per_m, leader.travelled_m,
+                     follower.v_mps, gap_m))
 
+    sim.zc.on_command = on_command
     sim.scheduler.call_every(config.loop_s, probe, start_s=0.0106)
     recorder = sim.run()
-    t = np.asarray(recorder.t_s)
-    gap = np.asarray(recorder.gap_m[1])
-    v_b = np.asarray(recorder.v_mps[1])
-    steady = (t >= settle_s) & (v_b > 0.05)
-    n = min(len(below_curve), len(t))
-    riding_m = float(np.mean(np.asarray(below_curve[:n])[steady[:n]]))
-    s_min = minimum_gap_m(v_b[steady], fast.beta_s_mps2, config.params.margin_m)
+    t, cseq, eoa_ahead_m, leader_d_m, v_b, gap = (np.asarray(col, dtype=float) for col in zip(*rows))
+    steady = (t >= settle_s) & (v_b > 0.05) & np.isin(cseq, list(basis))
+    s_min = minimum_gap_m(v_b[steady], fast.beta_s_mps2, params.margin_m)
     achieved = float(np.mean(gap[steady]))
     theoretical = float(np.mean(s_min))
-    v_mean = float(np.mean(v_b[steady]))
+    budget = _overhead_budget(config, fast, basis, steady, t, cseq, eoa_ahead_m, leader_d_m, v_b, gap)
     return {
-        "report_ms": report_ms or obu.DEFAULTS["report_ms"],
+        "report_ms": report_ms or params.fast_report_ms,
         "leader_speed_mps": leader_v_mps,
-        "follower_speed_mps": round(v_mean, 3),
+        "follower_speed_mps": round(float(np.mean(v_b[steady])), 3),
         "achieved_gap_m": round(achieved, 4),
         "theoretical_min_gap_m": round(theoretical, 4),
         "achieved_over_theoretical": round(achieved / theoretical, 3),
         "overhead_m": round(achieved - theoretical, 4),
-        "overhead_budget_m": _overhead_budget(sim, steady, riding_m, achieved - theoretical),
+        "overhead_budget_m": budget,
+        # what the ratio would be if B rode exactly on its curve with exact estimates: the safety terms alone
+        "safety_floor_ratio": round((theoretical + budget["leader_moved_m"] + budget["k_sigma_m"]
+                                     + budget["stop_window_m"]) / theoretical, 3),
         "collisions": recorder.summary()["collisions"],
         "authority_overruns": recorder.summary()["authority_overruns"],
+        "emergency_trips": recorder.summary()["emergency_trips"],
     }
 
 
-def _overhead_budget(sim, steady, riding_m, overhead_m):
-    """Where the distance beyond S_min goes, over the steady samples: the stop window the service curve keeps (by
-    design), k sigma of both estimates (measured), how far the follower rides inside its curve (measured on board:
-    its speed cannot follow the saw-tooth of an end of authority that jumps at each report of the train ahead), and
-    the remainder: the age of the leader's data (its report period, latency) and estimate errors."""
-    rec = sim.recorder
-    sigma_a = np.asarray(rec.est_sigma_m[0])[steady]
-    sigma_b = np.asarray(rec.est_sigma_m[1])[steady]
-    k_sigma_m = sim.config.params.k_sigma * float(np.nanmean(np.sqrt(sigma_a ** 2 + sigma_b ** 2)))
+def _overhead_budget(config, profile, basis, steady, t, cseq, eoa_ahead_m, leader_d_m, v_b, gap):
+    """Where the gap beyond S_min goes, each term measured on the steady samples against truth; they add up to the
+    overhead exactly (gap - S_M - v^2/(2 beta_s)):
+
+    leader_moved     how far the leader travelled since the sample of its data behind the end of authority B obeys
+                     (its report period, both links, B's loop): the price of the brick wall with data of that age
+    k_sigma          k times the combined sigma of both estimates that the controller took off
+    estimates        the rest of the distance from the leader's true tail (at its data time) to B's end of authority
+                     beyond S_M and k sigma: both estimates' errors, the low bound of B's encoder scale
+    stop_window      the service curve ends this short of the end of authority (keeps it under the trip curve)
+    inside_curve     how far B rides inside its service curve: the end of authority jumps forward at each report of
+                     the leader and B cannot speed up at once; and its encoder, reading long, thinks it faster
+    """
+    p = config.params
+    data_t = np.array([basis[int(c)][0] for c in cseq[steady]])
+    k_sigma_m = p.k_sigma * np.array([basis[int(c)][1] for c in cseq[steady]])
+    moved_m = leader_d_m[steady] - np.interp(data_t, t, leader_d_m)
     window_m = obu.DEFAULTS["stop_window_mm"] / 1000.0
-    return {"stop_window_m": round(window_m, 4), "k_sigma_m": round(k_sigma_m, 4),
-            "inside_curve_m": round(riding_m, 4),
-            "leader_data_age_m": round(overhead_m - window_m - k_sigma_m - riding_m, 4)}
+    braking_m = v_b[steady] ** 2 / (2.0 * profile.beta_s_mps2)
+    inside_m = eoa_ahead_m[steady] - window_m - braking_m
+    # gap = moved + (tail at data time - end of authority) + (end of authority - head)
+    estimates_m = gap[steady] - moved_m - eoa_ahead_m[steady] - p.margin_m - k_sigma_m
+    terms = {"leader_moved_m": moved_m, "k_sigma_m": k_sigma_m, "estimates_m": estimates_m,
+             "stop_window_m": np.full(moved_m.shape, window_m), "inside_curve_m": inside_m}
+    return {name: round(float(np.mean(values)), 4) for name, values in terms.items()}
 
 
 def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf"):

@@ -44,6 +44,7 @@ class MovingBlockPolicy:
         if leader is None:
             # alone: its own tail is the train ahead on a loop; the end of the track on an open line
             gap_m = layout.length_m - profile.length_m if layout.closed else layout.length_m - own.s_m
+            state.leader_data_t_s, state.sigma_m = None, own.sigma_s_m
             return moving_block_distance_m(gap_m, own.sigma_s_m, 0.0, self.params), None
         ahead = leader.estimator.estimate(leader.report_t_s)
         tail_s = layout.wrap(ahead.s_m - leader.setup.profile.length_m)
@@ -56,6 +57,8 @@ class MovingBlockPolicy:
         # extrapolated); the older that is, the more it may have rolled back: stale data shrinks the authority (and
         # the zone controller stops extending it at all after max_leader_age_s)
         age_s = now_s - leader.report_t_s
+        state.leader_data_t_s = leader.report_t_s
+        state.sigma_m = combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m)
         return moving_block_distance_m(gap_m, own.sigma_s_m, ahead.sigma_s_m, self.params, age_s), ahead.v_mps
 
     def authority(self, zc, state, leader, now_s):

@@ -59,7 +59,16 @@ def make_policy(config: ScenarioConfig):
         return MovingBlockPolicy(config.params)
     if config.policy == "fixed_block":
         from .fixed_block import FixedBlockPolicy
-        return FixedBlockPolicy(config.params, **{"seed": config.seed, **config.policy_options})
+        try:
+            policy = FixedBlockPolicy(config.params, **{"seed": config.seed, **config.policy_options})
+            blocks = policy.blocks(config.layout)
+        except ValueError as exc:
+            raise ConfigError(f"fixed block: {exc}") from None
+        if config.layout.closed and len(blocks) <= len(config.trains):
+            raise ConfigError(f"fixed block: {len(config.trains)} trains on the {len(blocks)} blocks of loop "
+                              f"{config.layout.name} cannot move (each needs a clear block ahead): give more blocks "
+                              f"than trains, e.g. {2 * len(config.trains)} (cbtc sim --blocks)")
+        return policy
     raise ConfigError(f"unknown policy {config.policy!r}: use moving_block or fixed_block")
 
 
@@ -103,6 +112,8 @@ class Simulation:
             self.trains.append(VirtualTrain(spec.train_id, train_key(config.seed, spec.train_id), layout, spec.profile,
                                             spec.s0_m, client, rng, offset_ms, obu_overrides=config.obu_overrides,
                                             ranging=self._ranging(index)))
+        if config.policy == "fixed_block":
+            self._check_not_gridlocked()
         self.recorder = Recorder(self)
         self.zc.start()
         for train in self.trains:
@@ -112,6 +123,21 @@ class Simulation:
             self.scheduler.call_every(config.loop_s, self._ticker(train), start_s=0.001 * (index + 1))
         self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
+
+    def _check_not_gridlocked(self):
+        """Fixed blocks on a loop: if every train starts within the margin of an occupied block ahead, none can ever
+        move (each holds a block another needs)."""
+        layout = self.config.layout
+        if not layout.closed or len(self.trains) < 2:
+            return
+        blocks = self.policy.blocks(layout)
+        spans = [(t.train_id, t.head_s, t.tail_s) for t in self.trains]
+        margin_m = self.config.params.margin_m
+        if all(self.policy.clear_run(layout, blocks, spans, t.train_id, t.head_s)[1] <= margin_m
+               for t in self.trains):
+            raise ConfigError(f"fixed block: the {len(self.trains)} trains start on the {len(blocks)} blocks of "
+                              f"{layout.name} each at an occupied block, so none can move: give another block count "
+                              f"(cbtc sim --blocks)")
 
     def _ranging(self, index):
         """The train-to-train ranging driver of train `index` (None unless the config asks for ranging)."""
@@ -275,7 +301,17 @@ class Recorder:
             "collisions": sum(self.collisions),
             "authority_overruns": sum(self.overruns),
             "emergency_trips": sum(t.obu.trips for t in self.sim.trains),
+            "all_standing_at_end_s": round(all_standing_s(self.t_s, self.v_mps), 3),
         }
+
+
+def all_standing_s(t_s, v_mps_by_train):
+    """How long (s) every train had been standing still at the last sample (sample times `t_s`, speeds per train):
+    long means gridlock."""
+    for k in range(len(t_s) - 1, -1, -1):
+        if any(v[k] > 0.0 for v in v_mps_by_train):
+            return t_s[-1] - t_s[k]
+    return t_s[-1] - t_s[0] if t_s else 0.0
 
 
 def paper_scenario(layout, seed=0, laps=5, duration_s=200.0, **overrides) -> ScenarioConfig:

@@ -60,6 +60,8 @@ class TrainState:
         self.answered_s = None       # controller time of the last command sent to this train
         self.fast_until_s = -1.0     # until then this train is asked for fast reports (a train behind follows it)
         self.stop_m = None           # distance to the service stop target at the last command (m), None: none
+        self.leader_data_t_s = None  # sample time of the train-ahead data the last authority rests on (moving block)
+        self.sigma_m = None          # combined 1-sigma of both estimates taken off that authority (k of them)
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
         self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
         self.gap_alarms = 0
@@ -110,6 +112,7 @@ class ZoneController:
         self.cycles = 0
         self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.transponder.RangingSensor.sigma_m)
         self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
+        self.on_command = None        # callable(state, now_s) after each command is published (supervision, tests)
 
     # --- shell: bus ----------------------------------------------------------------------------------------------
 
@@ -291,6 +294,8 @@ class ZoneController:
             int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
             max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms)
         self.client.publish(wire.topic_command(state.train_id), payload)
+        if self.on_command is not None:
+            self.on_command(state, now_s)
 
     def stop_all(self, now_s: float) -> None:
         """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
@@ -337,6 +342,7 @@ class ZoneController:
                 "v_mps": None if est is None else round(est.v_mps, 4),
                 "sigma_s_m": None if est is None else round(est.sigma_s_m, 4),
                 "limit_s_m": None if st.limit_s is None else round(st.limit_s, 4),
+                "leader_data_age_s": None if st.leader_data_t_s is None else round(now_s - st.leader_data_t_s, 3),
                 "mode": None if st.report is None else st.report["mode"],
                 "faults": [] if st.report is None else list(st.report["flt"]),
                 "next_stop": st.next_stop,

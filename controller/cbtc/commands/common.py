@@ -1,6 +1,7 @@
 """Helpers shared by sub-commands: printing tables and JSON."""
 
 import json
+import sys
 
 
 def print_json(data) -> None:
@@ -42,7 +43,11 @@ def run_scenario_and_report(config, title, args) -> int:
         print(f"{title}: {summary['simulated_s']} s simulated in {wall_s:.1f} s "
               f"(policy {summary['policy']}, estimator {summary['estimator']})")
         print(format_table(summary["trains"], TRAIN_COLUMNS))
-        print(f"collisions {summary['collisions']}, authority overruns {summary['authority_overruns']}")
+        print(f"collisions {summary['collisions']}, authority overruns {summary['authority_overruns']}, "
+              f"emergency trips {summary['emergency_trips']}")
+        if summary["all_standing_at_end_s"] > 20.0:
+            print(f"warning: every train stood still for the last {summary['all_standing_at_end_s']:.0f} s: gridlock? "
+                  f"(fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
         if args.plot:
             print(f"distance-time plot: {args.plot}")
     return 0 if summary["collisions"] == 0 else 1

@@ -12,6 +12,22 @@ COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_follow
            ("collisions", "collisions"), ("authority_overruns", "overruns"), ("emergency_trips", "trips")]
 
 
+FOLLOWING_COLUMNS = [("v", "B m/s"), ("report_ms", "reports ms"), ("achieved", "gap m"), ("theoretical", "S_min m"),
+                     ("ratio", "ratio"), ("floor", "floor"), ("leader_moved", "leader moved"), ("k_sigma", "k sigma"),
+                     ("estimates", "estimates"), ("stop_window", "stop window"), ("inside_curve", "inside curve"),
+                     ("trips", "trips")]
+
+
+def _following_row(f):
+    row = {"v": f["follower_speed_mps"], "report_ms": f["report_ms"], "achieved": f["achieved_gap_m"],
+           "theoretical": f["theoretical_min_gap_m"], "ratio": f["achieved_over_theoretical"],
+           "trips": f["emergency_trips"]}
+    for name, metres in f["overhead_budget_m"].items():
+        row[name[:-2]] = round(100.0 * metres, 2)
+    row["floor"] = f["safety_floor_ratio"]
+    return row
+
+
 def register(sub):
     p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
                        description=__doc__)
@@ -19,7 +35,11 @@ def register(sub):
     p.add_argument("--laps", type=int, default=5)
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",
-                   help="also run the steady-following experiment with these report periods (ms), e.g. 100,50,20")
+                   help="also run the steady-following experiment with every report at these periods (ms), e.g. "
+                        "100,50,20 (default: 50 ms, and 20 ms from a train the controller sees followed closely)")
+    p.add_argument("--follow-mps", default="", metavar="V,...",
+                   help="also run the steady-following experiment behind a leader at these speeds (m/s), e.g. "
+                        "0.3,0.5 (the follower's line speed is 0.6)")
     p.add_argument("--code-ber", type=float, default=0.0, metavar="P",
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
     p.add_argument("--seed", type=int, default=0)
@@ -45,20 +65,38 @@ def _whole_numbers(text, option, minimum, example):
     return values
 
 
+def _speeds(text, option, low, high, example):
+    """The comma-separated speeds (m/s) of `option`, each in [low, high]; ConfigError naming the bad item."""
+    values = []
+    for item in text.split(","):
+        if item.strip():
+            try:
+                value = float(item)
+            except ValueError:
+                value = -1.0
+            if not low <= value <= high:
+                raise ConfigError(f"{option}: {item.strip()!r} is not a speed in [{low}, {high}] m/s; "
+                                  f"give e.g. {option} {example}")
+            values.append(value)
+    return values
+
+
 def run(args):
     # every setting is checked before the first (long) run
     report_periods = _whole_numbers(args.report_ms, "--report-ms", 1, "100,20")
+    speeds = _speeds(args.follow_mps, "--follow-mps", 0.05, 0.55, "0.3,0.5")
     counts = _whole_numbers(args.blocks, "--blocks", 2, "2,4,8")
     SpeedCodeChannel(args.code_ber)
     layout = load_layout(args.layout)
     systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps, code_ber=args.code_ber)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
     following = steady_following(layout, seed=args.seed)
-    by_period = [steady_following(layout, seed=args.seed, report_ms=ms)
-                 for ms in report_periods]
+    by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in report_periods]
+    by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
     sweep = block_sweep(layout, counts, seed=args.seed) if counts else []
     result = {"layout": layout.name, "seed": args.seed, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
+              "following_by_speed": by_speed,
               "block_sweep": sweep}
     if args.plot:
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
@@ -75,11 +113,10 @@ def run(args):
           f"{codes['undetected']} wrong")
     print(f"moving block vs fixed block: gap -{cuts['gap_reduction_pct']} % (paper -52 %), "
           f"lap time -{cuts['lap_reduction_pct']} % (paper -56 %)")
-    for f in [following] + by_period:
-        budget = ", ".join(f"{k[:-2].replace('_', ' ')} {v}" for k, v in f["overhead_budget_m"].items())
-        print(f"steady following at {f['follower_speed_mps']} m/s, reports every {f['report_ms']} ms: achieved gap "
-              f"{f['achieved_gap_m']} m, theoretical S_M + v^2/(2 beta_s) = {f['theoretical_min_gap_m']} m, ratio "
-              f"{f['achieved_over_theoretical']} (overhead {f['overhead_m']} m: {budget})")
+    print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed; floor: "
+          "the ratio with a perfect speed loop and estimates (only the leader's travel since its data, k sigma and "
+          "the stop window left); where the overhead goes, in cm, measured against truth")
+    print(format_table([_following_row(f) for f in [following] + by_period + by_speed], FOLLOWING_COLUMNS))
     if sweep:
         print("fixed-block sweep:")
         print(format_table(sweep, [("blocks", "blocks"), ("block_length_m", "block m")] + COLUMNS[1:]))

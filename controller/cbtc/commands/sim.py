@@ -1,5 +1,6 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
+from ..errors import ConfigError
 from ..layout import load_layout
 from ..scenario import queue_scenario
 from .common import run_scenario_and_report
@@ -12,6 +13,8 @@ def register(sub):
     p.add_argument("--duration", type=float, default=120.0, help="simulated seconds (default: 120)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
+    p.add_argument("--blocks", type=int, default=None, metavar="N",
+                   help="fixed block: N equal blocks instead of the layout's own (a loop needs more blocks than trains)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", default="", help="write a distance-time plot")
@@ -20,6 +23,9 @@ def register(sub):
 
 def run(args):
     layout = load_layout(args.layout)
+    if args.blocks is not None and args.policy != "fixed_block":
+        raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
+    options = {} if args.blocks is None else {"blocks": args.blocks}
     config = queue_scenario(layout, args.trains, seed=args.seed, duration_s=args.duration, policy=args.policy,
-                            estimator=args.estimator)
+                            estimator=args.estimator, policy_options=options)
     return run_scenario_and_report(config, f"{args.trains} trains on {layout.name}, seed {args.seed}", args)
