@@ -187,18 +187,22 @@ def test_riding_the_curve_behind_a_moving_limit_is_takagi_synchronisation():
     assert abs(unit.braking_curve_mmps(beta) - unit.v_ref_mmps) < 10.0
 
 
+def _running_at(odo_mm, stop_mm=None):
+    """A bench whose train runs under a 3 m authority (and `stop_mm`) until its odometer passes `odo_mm`."""
+    bench = Bench()
+    bench.step()
+    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=stop_mm, ttl_ms=10_000)
+    while bench.unit.odo_mm <= odo_mm:
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    return bench
+
+
 def test_a_station_stop_is_a_service_target_that_never_trips():
     """The stop target (a station) is braked to at the service rate and held; moving it back (the controller's
     position of the train was corrected at a balise) makes the train brake harder, never trip: the trip curve
     supervises the end of authority alone."""
-    bench = Bench()
+    bench = _running_at(1200, stop_mm=1500)
     unit = bench.unit
-    bench.step()
-    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=1500, ttl_ms=10_000)
-    for _ in range(150):
-        bench.step(v_mmps=int(unit.v_ref_mmps))
-        if unit.odo_mm > 1200:
-            break
     assert unit.v_ref_mmps > 200, "running towards the station"
     bench.command(v_mmps=500, eoa_mm=3000, stop_mm=unit.odo_mm + 30, ttl_ms=10_000)   # the station is nearer
     for _ in range(100):
@@ -206,16 +210,10 @@ def test_a_station_stop_is_a_service_target_that_never_trips():
     assert unit.trips == 0 and unit.mode == "run"
     assert unit.v_ref_mmps == 0 and bench.motor.mode == "brake", "stopped and held at the station"
     # the same retraction of the end of authority is a safety matter: the trip curve brakes the motor
-    bench2 = Bench()
-    bench2.step()
-    bench2.command(v_mmps=500, eoa_mm=3000, ttl_ms=10_000)
-    for _ in range(150):
-        bench2.step(v_mmps=int(bench2.unit.v_ref_mmps))
-        if bench2.unit.odo_mm > 1200:
-            break
-    bench2.command(v_mmps=500, eoa_mm=bench2.unit.odo_mm + 30, ttl_ms=10_000)
-    bench2.step(v_mmps=int(bench2.unit.v_mmps))
-    assert bench2.unit.trips == 1 and bench2.motor.mode == "brake"
+    bench = _running_at(1200)
+    bench.command(v_mmps=500, eoa_mm=bench.unit.odo_mm + 30, ttl_ms=10_000)
+    bench.step(v_mmps=int(bench.unit.v_mmps))
+    assert bench.unit.trips == 1 and bench.motor.mode == "brake"
 
 
 def test_a_stop_target_beyond_the_end_of_authority_stops_at_the_end_of_authority():

@@ -103,3 +103,26 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
     assert early == pytest.approx(50, abs=1)
     assert period_ms(0, 25.0, 30.0) == pytest.approx(20, abs=1)
     assert period_ms(1, 25.0, 30.0) == pytest.approx(50, abs=1), "nobody follows B"
+
+
+def test_fast_reports_stay_within_the_controllers_report_budget_most_urgent_first():
+    """Four trains close behind each other on a small loop, every one held by the one ahead; a controller sized for
+    4 x 20 + 30 reports a second has one fast slot: exactly one train reports at 20 ms at a time, the one whose
+    follower has the least authority left."""
+    from cbtc.scenario import Simulation, queue_scenario
+
+    config = queue_scenario(load_layout("lego_oval"), 4, seed=1, duration_s=40.0, report_budget_hz=110.0)
+    sim = Simulation(config)
+    assert sim.zc.fast_slots == 1
+    fast_at = []
+
+    def count_fast(now_s):
+        fast_at.append([st.train_id for st in sim.zc.trains.values() if sim.zc._fast_reports(st, now_s)])
+    sim.scheduler.call_every(0.5, count_fast, start_s=10.0)
+    sim.run()
+    assert all(len(ids) <= 1 for ids in fast_at)
+    assert sum(1 for ids in fast_at if ids) > len(fast_at) // 2, "the slot is used while trains follow"
+    wanting = [st for st in sim.zc.trains.values() if sim.zc.now_fn() < st.fast_until_s]
+    if len(wanting) > 1:
+        urgent = min(wanting, key=lambda st: (st.fast_need_m, st.train_id))
+        assert sim.zc._fast_reports(urgent, sim.zc.now_fn())

@@ -47,6 +47,7 @@ class ScenarioConfig:
     policy_options: dict = field(default_factory=dict)
     ranging: dict = None             # RangingSensor settings: every train ranges to the one ahead, guard armed
     obu_overrides: dict = None       # OnboardUnit settings for every train (firmware/obu.py DEFAULTS), e.g. report_ms
+    report_budget_hz: float = 400.0  # reports a second the zone controller is sized for (fast reports within it)
 
 
 def train_key(seed: int, train_id: str) -> bytes:
@@ -101,7 +102,8 @@ class Simulation:
                                              up=config.link, down=config.link)
         self.policy = make_policy(config)
         self.zc = ZoneController(layout, setups, self.zc_client, self.scheduler.now_s, self.policy, config.params,
-                                 make_estimator_factory(config.estimator), config.cycle_s, seed=config.seed)
+                                 make_estimator_factory(config.estimator), config.cycle_s, seed=config.seed,
+                                 report_budget_hz=config.report_budget_hz)
         self.trains = []
         for index, spec in enumerate(config.trains):
             rng = np.random.default_rng([config.seed, index])

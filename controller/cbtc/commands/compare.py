@@ -48,44 +48,28 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def _whole_numbers(text, option, minimum, example):
-    """The comma-separated whole numbers of `option`, each at least `minimum`; ConfigError naming the option, the bad
-    item and an example."""
+def _number_list(text, option, kind, low, high, what, example):
+    """The comma-separated numbers of `option` converted by `kind` (int or float), each in [low, high]; ConfigError
+    naming the option, the bad item, `what` it must be and an example."""
     values = []
     for item in text.split(","):
         if item.strip():
             try:
-                value = int(item)
+                value = kind(item)
             except ValueError:
-                value = 0
-            if value < minimum:
-                raise ConfigError(f"{option}: {item.strip()!r} is not a whole number >= {minimum}; "
-                                  f"give e.g. {option} {example}")
-            values.append(value)
-    return values
-
-
-def _speeds(text, option, low, high, example):
-    """The comma-separated speeds (m/s) of `option`, each in [low, high]; ConfigError naming the bad item."""
-    values = []
-    for item in text.split(","):
-        if item.strip():
-            try:
-                value = float(item)
-            except ValueError:
-                value = -1.0
-            if not low <= value <= high:
-                raise ConfigError(f"{option}: {item.strip()!r} is not a speed in [{low}, {high}] m/s; "
-                                  f"give e.g. {option} {example}")
+                value = None
+            if value is None or not low <= value <= high:
+                raise ConfigError(f"{option}: {item.strip()!r} is not {what}; give e.g. {option} {example}")
             values.append(value)
     return values
 
 
 def run(args):
     # every setting is checked before the first (long) run
-    report_periods = _whole_numbers(args.report_ms, "--report-ms", 1, "100,20")
-    speeds = _speeds(args.follow_mps, "--follow-mps", 0.05, 0.55, "0.3,0.5")
-    counts = _whole_numbers(args.blocks, "--blocks", 2, "2,4,8")
+    report_periods = _number_list(args.report_ms, "--report-ms", int, 1, 10000, "a whole number >= 1", "100,20")
+    speeds = _number_list(args.follow_mps, "--follow-mps", float, 0.05, 0.55, "a speed in [0.05, 0.55] m/s",
+                          "0.3,0.5")
+    counts = _number_list(args.blocks, "--blocks", int, 2, 10000, "a whole number >= 2", "2,4,8")
     SpeedCodeChannel(args.code_ber)
     layout = load_layout(args.layout)
     systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps, code_ber=args.code_ber)
