@@ -44,7 +44,7 @@ DEFAULTS = {
     "max_data_age_ms": 1000,  # a command based on an older report of ours is stale and refused (ms)
     "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
     "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
-    "stop_window_mm": 10,     # this close to the end of authority the train brakes to standstill and holds (mm)
+    "stop_window_mm": 10,     # the service curve ends this short of the end of authority (mm): 38 mm/s under the trip curve
     "guard_margin_mm": 100,   # collision guard: measured gap kept beyond the emergency braking distance (mm)
     "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
 }
