@@ -7,9 +7,9 @@ each MQTT message; `now_ms` is a monotonic, non-wrapping board time in ms. Nothi
 What one step does: sample the encoder, the IPS and the RFID reader; supervise the movement authority (the end of
 authority is a value of the train's own odometer, so it holds between commands); ramp a speed reference under the
 service braking curve to that end and to the stop target (a station: a service stop, not supervised by the trip
-curve); run the speed PI loop to a motor duty; report at the rate the controller asks for (or `report_ms`). When the newest valid command
-has expired, the target speed is zero: the train brakes to a stop and stays braked. If the speed ever exceeds the
-braking curve by a margin, the unit trips: motor brake until standstill.
+curve); run the speed PI loop to a motor duty; report at the rate the controller asks for (or `report_ms`). When the
+newest valid command has expired, the target speed is zero: the train brakes to a stop and stays braked. If the speed
+ever exceeds the braking curve by a margin, the unit trips: motor brake until standstill.
 
 Collision guard (optional `ranging` driver, `poll(now_ms) -> gap_mm | None`: the coded train-to-train ranging to the
 train ahead): whenever a fresh measured gap is shorter than the emergency braking distance at the current speed plus
@@ -44,7 +44,7 @@ DEFAULTS = {
     "max_data_age_ms": 1000,  # a command based on an older report of ours is stale and refused (ms)
     "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
     "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
-    "stop_window_mm": 10,     # the service curve ends this short of the end of authority (mm): 38 mm/s under the trip curve
+    "stop_window_mm": 10,     # the service curve ends this short of the end of authority: 38 mm/s under the trip (mm)
     "guard_margin_mm": 100,   # collision guard: measured gap kept beyond the emergency braking distance (mm)
     "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
 }

@@ -161,6 +161,25 @@ for i in range(200):
     step(v=int(unit.v_ref_mmps))
 assert unit.mode == "stop" and motor.mode == "brake" and unit.v_ref_mmps == 0
 assert "cmd_timeout" in last_report()["flt"]
+# a station stop short of the end of authority, fast reports asked for: served, the brake used below the drag
+start = unit.odo_mm
+def command2(eoa, stop, rpt):
+    seq[0] += 1
+    pay = wire.encode_command(KEY, "A", seq[0], 1, last_report()["seq"], 500, eoa, 800, 600, 800, stop, rpt)
+    unit.on_message("cbtc/train/A/cmd", pay, now)
+braked_running = 0
+seq_at_250 = 0
+for i in range(300):
+    step(v=int(unit.v_ref_mmps))
+    if now % 100 == 0:
+        command2(start + 5000, start + 1500, 20)
+    if motor.mode == "brake" and unit.mode == "run" and unit.v_mmps > 0:
+        braked_running += 1
+    if i == 249:
+        seq_at_250 = unit.seq
+assert start + 1400 < unit.odo_mm <= start + 1500 and unit.trips == 0, unit.odo_mm
+assert braked_running > 0
+assert unit.seq - seq_at_250 == 50, "a report every 20 ms pass while commands ask for 20 ms"
 print("OK peak_heap_bytes", peak[0])
 """
     rc, out, err = run_mpy(script)

@@ -61,7 +61,6 @@ class TrainState:
         self.answered_s = None       # controller time of the last command sent to this train
         self.fast_until_s = -1.0     # until then this train is asked for fast reports (a train behind follows it)
         self.fast_need_m = 0.0       # the authority left to that follower (m): the less, the more it needs them
-        self.stop_m = None           # distance to the service stop target at the last command (m), None: none
         self.leader_data_t_s = None  # sample time of the train-ahead data the last authority rests on (moving block)
         self.sigma_m = None          # combined 1-sigma of both estimates taken off that authority (k of them)
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
@@ -273,19 +272,17 @@ class ZoneController:
         supervision."""
         report = state.report
         state.safe_m = safe_m
-        state.stop_m = stop_m
-        distance_m = safe_m
-        if distance_m is None:
+        if safe_m is None:
             # no picture of every train: stop now at service rate; the authority never extends
             v_mps = max(0.0, report["v_mmps"] / 1000.0)
-            stop_m = v_mps * state.setup.profile.reaction_s + v_mps * v_mps / (2.0 * dec_mps2)
-            eoa_mm = report["odo_mm"] + int(stop_m * 1000.0)
+            brake_m = v_mps * state.setup.profile.reaction_s + v_mps * v_mps / (2.0 * dec_mps2)
+            eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
         else:
             # metres along the track into the board's odometer units, with a low bound of the encoder's scale: a
             # wheel that reads short must not carry the train past its limit
             scale = state.estimator.odometer_per_m_low(self.params.k_sigma)
-            eoa_mm = report["odo_mm"] + int(distance_m * scale * 1000.0)
-        if state.eoa_mm is not None and (distance_m is None or self._leader_stale(state, now_s)):
+            eoa_mm = report["odo_mm"] + int(safe_m * scale * 1000.0)
+        if state.eoa_mm is not None and (safe_m is None or self._leader_stale(state, now_s)):
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
         # a stop target is service, not safety: the best estimate of the scale, and never beyond the end of authority
