@@ -68,7 +68,8 @@ def make_policy(config: ScenarioConfig):
         if config.layout.closed and len(blocks) <= len(config.trains):
             raise ConfigError(f"fixed block: {len(config.trains)} trains on the {len(blocks)} blocks of loop "
                               f"{config.layout.name} cannot move (each needs a clear block ahead): give more blocks "
-                              f"than trains, e.g. {2 * len(config.trains)} (cbtc sim --blocks)")
+                              f"than trains, each well longer than a train and its margin, since a train across a "
+                              f"block boundary holds two (cbtc sim --blocks)")
         return policy
     raise ConfigError(f"unknown policy {config.policy!r}: use moving_block or fixed_block")
 
