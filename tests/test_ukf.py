@@ -323,16 +323,50 @@ def test_measurement_older_than_the_history_is_dropped(loop):
 
 # --- interface -----------------------------------------------------------------------------------------------------------
 
-def test_not_localized_until_a_fix_or_a_tag(loop):
+def _standing_reports(layout, s_m, fixes_xy, t0_ms=BOARD_OFFSET_MS, period_ms=125):
+    """Reports of a train standing at `s_m` (odometer 0), one IPS fix each from `fixes_xy` (layout frame, m)."""
+    from cbtc.ips_frame import track_to_ips
+
+    reports = []
+    for i, (x_m, y_m) in enumerate(fixes_xy):
+        t_ms = t0_ms + i * period_ms
+        xi, yi = track_to_ips(x_m, y_m, layout.ips)
+        reports.append({"seq": i, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 0, "duty": 0, "mode": "idle", "cseq": -1,
+                        "ips": [t_ms, int(round(xi * 1000)), int(round(yi * 1000))], "tags": [], "flt": []})
+    return reports
+
+
+def test_not_localized_until_a_tag_or_enough_fixes_agree(loop):
     profile = TrainProfile()
     reports, _truth = synthetic_run(loop, profile, seed=14, duration_s=3.0)
     est = UkfEstimator(loop, profile)
     feed(est, [dict(r, ips=None, tags=[]) for r in reports])
-    assert not est.localized and est.estimate(1.0) is None
-    with_fix = next(r for r in reports if r["ips"] is not None)
-    feed(est, [dict(with_fix, t_ms=reports[-1]["t_ms"] + 100, ips=[reports[-1]["t_ms"] + 100] + with_fix["ips"][1:])])
+    assert not est.localized and est.estimate(1.0) is None, "the encoder alone cannot place a train"
+    x, y = (float(c) for c in loop.xy(1.0))
+    est = UkfEstimator(loop, profile)
+    standing = _standing_reports(loop, 1.0, [(x + 0.02, y), (x - 0.03, y), (x, y + 0.04)])
+    feed(est, standing[:2])
+    assert not est.localized, "two fixes are not enough"
+    feed(est, standing[2:])
     assert est.localized and est.name == "ukf"
-    assert est.estimate(controller_s(reports[-1]["t_ms"] + 100)) is not None
+    placed = est.estimate(controller_s(standing[-1]["t_ms"]))
+    assert abs(along_error_m(loop, placed.s_m, 1.0)) < 0.05
+
+
+def test_an_outlier_as_the_first_fix_does_not_place_the_train(loop):
+    """One IPS fix in a hundred is 0.3-1 m off. Placed by such a first fix, a train standing behind another could be
+    put ahead of it and granted its whole gap: the train is placed only where three fixes agree."""
+    profile = TrainProfile()
+    x, y = (float(c) for c in loop.xy(1.0))
+    ox, oy = (float(c) for c in loop.xy(1.7))                    # 0.7 m ahead along the track
+    fixes = [(ox, oy), (x + 0.02, y - 0.01), (x - 0.01, y + 0.02), (x + 0.03, y)]
+    est = UkfEstimator(loop, profile)
+    standing = _standing_reports(loop, 1.0, fixes)
+    feed(est, standing[:3])
+    assert not est.localized, "the outlier and two good fixes: no three agree yet"
+    feed(est, standing[3:])
+    placed = est.estimate(controller_s(standing[-1]["t_ms"]))
+    assert est.localized and abs(along_error_m(loop, placed.s_m, 1.0)) < 0.05, placed
 
 
 def test_unknown_setting_is_a_config_error(loop):

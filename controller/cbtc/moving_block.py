@@ -20,6 +20,7 @@ _STOP_WINDOW_M = obu.DEFAULTS["stop_window_mm"] / 1000.0   # the onboard service
 
 class MovingBlockPolicy:
     name = "moving_block"
+    fast_reports = True   # the authority rests on the train ahead's reports: ask it for fast ones when followed
 
     def __init__(self, params: AuthorityParams = None, sync_tolerance_m: float = 0.01, takagi: bool = True):
         self.params = params or AuthorityParams()

@@ -9,6 +9,7 @@ import math
 
 from .balise import BaliseReader
 from .estimate import Estimate
+from .fix_consensus import agreeing_anchor
 from .ips_frame import ips_to_track
 
 
@@ -26,6 +27,8 @@ class OdometryEstimator:
         self._var_ref_m2 = 0.0
         self._last = None          # (t_s, odo_mm, v_mps) of the newest report
         self.rejected_ips = 0
+        self.locate_fixes = 3      # IPS fixes that must agree before the IPS alone places the train
+        self._fix_anchors = []     # fix position less odometer (m) of the fixes seen while unplaced
         self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout
 
     def _s_and_var(self, odo_mm):
@@ -66,10 +69,15 @@ class OdometryEstimator:
         odo_fix_mm = odo_mm - v_mps * age_s * 1000.0
         r_m2 = self.profile.ips_sigma_m ** 2
         if not self.localized:
-            self._s_ref_m = self.layout.project(x_m, y_m)
-            self._odo_ref_mm = odo_fix_mm
-            self._var_ref_m2 = 4.0 * r_m2
-            self.localized = True
+            # placed only where `locate_fixes` fixes agree: one fix in a hundred is an outlier (cbtc.fix_consensus)
+            self._fix_anchors = (self._fix_anchors + [self.layout.project(x_m, y_m) - odo_fix_mm / 1000.0])[-5:]
+            found = agreeing_anchor(self._fix_anchors, self.profile.ips_sigma_m, self.locate_fixes,
+                                    self.layout.length_m if self.layout.closed else None)
+            if found is not None:
+                self._s_ref_m = found[0] + odo_fix_mm / 1000.0
+                self._odo_ref_mm = odo_fix_mm
+                self._var_ref_m2 = 4.0 * r_m2 / found[1]
+                self.localized = True
             return
         s_pred, var = self._s_and_var(odo_fix_mm)
         s_meas = self.layout.project(x_m, y_m, s_hint_m=self.layout.wrap(s_pred))

@@ -8,9 +8,10 @@ its receive time minus the IPS latency (when the beacon sampled it), a tag at it
 time, so a better clock offset learnt later never reorders anything. Measurements are kept for `history_s` seconds in
 time order with the filter state after each; one that lands before newer ones (a late IPS fix, a report overtaken
 in transit) is inserted at its time and the newer ones are re-run from the state just before it. Dropouts need
-nothing: the next measurement predicts over the gap. A run of `relocate_after` IPS fixes that all fail the gate
-means the train is not where the filter thinks (lifted and put back, a long slip): the position restarts from the
-newest fix.
+nothing: the next measurement predicts over the gap. A train is placed by its first balise read, or by the IPS
+only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.fix_consensus). A run of
+`relocate_after` IPS fixes that all fail the gate means the train is not where the filter thinks (lifted and put
+back, a long slip): the position restarts where the fixes of that run agree.
 """
 
 import bisect
@@ -21,7 +22,8 @@ from .balise import BaliseReader
 from .errors import ConfigError
 from .estimate import Estimate
 from .ips_frame import ips_to_track
-from .track_ukf import K, S, V, NoiseModel, TrackUkf, initial_covariance
+from .fix_consensus import agreeing_anchor
+from .track_ukf import D, K, S, V, NoiseModel, TrackUkf, initial_covariance
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,7 @@ class UkfParams:
     rfid_poll_s: float = 0.02         # the onboard loop polls the reader once per period
     gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
     relocate_after: int = 8           # this many consecutive gated IPS fixes restart the position
+    locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
     history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
 
     def __post_init__(self):
@@ -45,8 +48,9 @@ class UkfParams:
                 raise ConfigError(f"UKF estimator: {f.name} must be a number >= 0, got {value!r}")
         if not 0.5 < self.gate_prob < 1.0:
             raise ConfigError(f"UKF estimator: gate_prob is a probability in (0.5, 1), got {self.gate_prob}")
-        if self.relocate_after < 1 or self.history_s <= 0:
-            raise ConfigError("UKF estimator: relocate_after must be >= 1 and history_s > 0")
+        if self.relocate_after < 1 or self.history_s <= 0 or not 1 <= self.locate_fixes <= self.relocate_after:
+            raise ConfigError("UKF estimator: relocate_after must be >= 1, history_s > 0 and locate_fixes between 1 "
+                              "and relocate_after")
 
 
 def make_params(params: dict) -> UkfParams:
@@ -93,19 +97,19 @@ class _Event:
 class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
-    __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated_run", "relocations")
+    __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations")
 
-    def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated_run=0, relocations=0):
+    def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
         self.tags_used = tags_used
         self.tags_rejected = tags_rejected
-        self.gated_run = gated_run
+        self.gated = gated             # anchors (fix s - odometer, m) of the current run of gated IPS fixes
         self.relocations = relocations
 
     def copy_with(self, snap):
-        return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated_run,
+        return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
                       self.relocations)
 
 
@@ -245,14 +249,17 @@ class UkfEstimator:
             f.update_range(*event.data)
         elif f.update_ips(*event.data):
             new.ips_used += 1
-            new.gated_run = 0
+            new.gated = ()
         else:
             new.ips_rejected += 1
-            new.gated_run += 1
-            if new.gated_run >= self.params.relocate_after:
-                f.relocate(self.layout.project(*event.data), 2.0 * self.profile.ips_sigma_m)
-                new.relocations += 1
-                new.gated_run = 0
+            d_m = float(f.ukf.x[D])
+            new.gated = (state.gated + (self.layout.project(*event.data) - d_m,))[-self.params.relocate_after:]
+            if len(new.gated) >= self.params.relocate_after:
+                placed = self._agreeing(new.gated)
+                if placed is not None:
+                    f.relocate(self.layout.wrap(placed[0] + d_m), placed[1])
+                    new.relocations += 1
+                    new.gated = ()
         new.snap = f.snapshot()
         return new
 
@@ -264,8 +271,18 @@ class UkfEstimator:
             self._filter.restore(state.snap)
         return self._filter
 
+    def _agreeing(self, anchors_m):
+        """(anchor_m, sigma_m) where at least `locate_fixes` of the IPS anchors agree, sigma twice the IPS sigma over
+        the root of their number; None when they do not."""
+        found = agreeing_anchor(anchors_m, self.profile.ips_sigma_m, self.params.locate_fixes,
+                                self.layout.length_m if self.layout.closed else None)
+        if found is None:
+            return None
+        return found[0], 2.0 * self.profile.ips_sigma_m / math.sqrt(found[1])
+
     def _locate(self, event):
-        """The first fix or tag read places the train; encoder reports and ranges alone cannot."""
+        """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
+        ranges alone cannot. Called only while unlocated, so every IPS event up to this one is one of those fixes."""
         if event.kind in ("odo", "range"):
             return None
         d_m, v_mps = self._odometer_at(event.t_s)
@@ -276,9 +293,17 @@ class UkfEstimator:
             sigma_s_m = math.sqrt(self.noise.tag_var_m2 + late_m ** 2 / 12.0)
             used = _State(None, tags_used=1)
         else:
-            s_m = self.layout.project(*event.data)
-            sigma_s_m = 2.0 * self.profile.ips_sigma_m
-            used = _State(None, ips_used=1)
+            anchors = []
+            for e in self._events:
+                if e.kind == "ips":
+                    anchors.append(self.layout.project(*e.data) - self._odometer_at(e.t_s)[0])
+                if e is event:
+                    break
+            placed = self._agreeing(anchors[-(2 * self.params.locate_fixes - 1):])
+            if placed is None:
+                return None
+            s_m, sigma_s_m = placed[0] + d_m, placed[1]
+            used = _State(None, ips_used=self.params.locate_fixes)
         with_scale = self.params.scale_sigma > 0
         x0 = [self.layout.wrap(s_m), v_mps, d_m] + ([0.0] if with_scale else [])
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)

@@ -305,9 +305,10 @@ class ZoneController:
             self.on_command(state, now_s)
 
     def _fast_reports(self, state, now_s):
-        """True when `state`'s train is to report fast: a train behind is held by it, and it is among the
-        `fast_slots` trains whose followers have the least authority left."""
-        if now_s >= state.fast_until_s:
+        """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
+        fixed blocks rest on track circuits), a train behind is held by it, and it is among the `fast_slots` trains
+        whose followers have the least authority left."""
+        if now_s >= state.fast_until_s or not getattr(self.policy, "fast_reports", False):
             return False
         wanting = [st for st in self.trains.values() if now_s < st.fast_until_s]
         if len(wanting) <= self.fast_slots:
