@@ -185,16 +185,27 @@ def fleet_config(layout, train_ids=None, count: int = None, scenario: str = "aut
 
 class TruthMonitor:
     """Collisions counted from the trains' true positions, as scenario.Recorder counts them: a collision starts when
-    a train's head enters the span of the train ahead."""
+    a train's head enters the span of the train ahead. And how far each board's odometer ever moved past the end of
+    authority it held at the time (`moved_past_eoa_mm`): an end of authority set behind a standing train (an
+    estimate corrected by a few mm) is no overrun unless the train then moves."""
 
     def __init__(self, layout, trains):
         self.layout = layout
         self.trains = trains
         self.collisions = [0] * len(trains)
         self._inside = [False] * len(trains)
+        self.moved_past_eoa_mm = [0] * len(trains)
+        self._odo_mm = [None] * len(trains)
 
     def sample(self, _now_s=None) -> None:
         trains = self.trains
+        for i, train in enumerate(trains):
+            odo_mm, before_mm = train.obu.odo_mm, self._odo_mm[i]
+            if before_mm is not None and odo_mm > before_mm:
+                past_mm = odo_mm - max(train.obu.eoa_mm, before_mm)
+                if past_mm > 0:
+                    self.moved_past_eoa_mm[i] += past_mm
+            self._odo_mm[i] = odo_mm
         if len(trains) < 2:
             return
         order = sorted(range(len(trains)), key=lambda i: trains[i].head_s)
@@ -225,6 +236,8 @@ class TruthMonitor:
             "last_reject": obu.last_reject,
             "faults": list(obu.faults),
             "collisions": self.collisions[i],
+            "moved_past_eoa_mm": self.moved_past_eoa_mm[i],
+            "trips": obu.trips,
             "connected": train.client.connected,
         }
 
