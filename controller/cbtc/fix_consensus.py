@@ -8,13 +8,7 @@ the fix less the odometer reading at its time: a train that moves between fixes 
 
 import math
 
-
-def circular_offset_m(a_m: float, b_m: float, length_m: float = None) -> float:
-    """a - b (m), on a loop of `length_m` the shorter way round (None: an open line)."""
-    d = a_m - b_m
-    if length_m:
-        d = (d + 0.5 * length_m) % length_m - 0.5 * length_m
-    return d
+from .geometry import circular_offset_m
 
 
 def agreeing_anchor(anchors_m, sigma_m: float, need: int, length_m: float = None, gate_sigmas: float = 3.0):

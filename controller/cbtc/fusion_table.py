@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .estimate import BoardClock
+from .geometry import circular_offset_m
 from .ips_frame import ips_to_track
 from .odometry_estimator import OdometryEstimator
 from .ukf_estimator import UkfEstimator
@@ -76,10 +77,7 @@ class Trace:
 
 def signed_along_m(layout, s_from_m, s_to_m):
     """Signed along-track distance from `s_from_m` to `s_to_m` (m): the short way round on a loop."""
-    d = s_to_m - s_from_m
-    if layout.closed:
-        d = (d + 0.5 * layout.length_m) % layout.length_m - 0.5 * layout.length_m
-    return d
+    return circular_offset_m(s_to_m, s_from_m, layout.length_m if layout.closed else None)
 
 
 def records_from_recorder(recorder):

@@ -13,6 +13,14 @@ import numpy as np
 MAX_ARC_RAD = math.pi   # longer runs of one curvature are split, so every arc is at most a half circle
 
 
+def circular_offset_m(a_m, b_m, length_m=None):
+    """a - b (m) along a path: on a loop of `length_m` the shorter way round the seam (None: an open line)."""
+    d = a_m - b_m
+    if length_m:
+        d = (d + 0.5 * length_m) % length_m - 0.5 * length_m
+    return d
+
+
 def _runs(segments):
     """Merge consecutive segments of equal curvature into runs [curvature_per_m, length_m] (0 per m on a straight)."""
     runs = []

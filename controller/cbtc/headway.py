@@ -114,6 +114,7 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
     achieved = float(np.mean(gap[steady]))
     theoretical = float(np.mean(s_min))
     budget = _overhead_budget(config, fast, basis, steady, t, cseq, eoa_ahead_m, leader_d_m, v_b, gap)
+    summary = recorder.summary()
     return {
         "report_ms": report_ms or params.fast_report_ms,
         "leader_speed_mps": leader_v_mps,
@@ -126,9 +127,9 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
         # what the ratio would be if B rode exactly on its curve with exact estimates: the safety terms alone
         "safety_floor_ratio": round((theoretical + budget["leader_moved_m"] + budget["k_sigma_m"]
                                      + budget["stop_window_m"]) / theoretical, 3),
-        "collisions": recorder.summary()["collisions"],
-        "authority_overruns": recorder.summary()["authority_overruns"],
-        "emergency_trips": recorder.summary()["emergency_trips"],
+        "collisions": summary["collisions"],
+        "authority_overruns": summary["authority_overruns"],
+        "emergency_trips": summary["emergency_trips"],
     }
 
 

@@ -70,7 +70,9 @@ class OdometryEstimator:
         r_m2 = self.profile.ips_sigma_m ** 2
         if not self.localized:
             # placed only where `locate_fixes` fixes agree: one fix in a hundred is an outlier (cbtc.fix_consensus)
-            self._fix_anchors = (self._fix_anchors + [self.layout.project(x_m, y_m) - odo_fix_mm / 1000.0])[-5:]
+            # the newest 2 n - 1 fixes, as the UKF takes them: n agreeing ones outvote the rest
+            keep = 2 * self.locate_fixes - 1
+            self._fix_anchors = (self._fix_anchors + [self.layout.project(x_m, y_m) - odo_fix_mm / 1000.0])[-keep:]
             found = agreeing_anchor(self._fix_anchors, self.profile.ips_sigma_m, self.locate_fixes,
                                     self.layout.length_m if self.layout.closed else None)
             if found is not None:

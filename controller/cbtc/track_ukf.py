@@ -23,6 +23,8 @@ import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 from scipy.stats import chi2
 
+from .geometry import circular_offset_m
+
 # scaled unscented transform: sigma points at +-2 sigma, all mean weights positive (lambda = 0)
 _ALPHA = 1.0
 _BETA = 2.0
@@ -104,7 +106,7 @@ def along_track_residual(layout):
 
     def residual(a, b):
         y = np.subtract(a, b)
-        y[0] = (y[0] + 0.5 * length_m) % length_m - 0.5 * length_m
+        y[0] = circular_offset_m(y[0], 0.0, length_m)
         return y
 
     return residual
