@@ -26,6 +26,8 @@ except ImportError:  # CPython
         return value
 
 VERSION = const(1)
+ODO_MM_PER_M_MIN = const(500)    # the encoder scales a command may state (odometer mm per true m): no wheel is
+ODO_MM_PER_M_MAX = const(2000)   # off by a factor of two
 MAX_TAGS = const(4)
 INT31 = const(2147483647)     # largest sequence number, time or odometer value
 _MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
@@ -178,7 +180,8 @@ def decode_command(key, topic, payload):
     return decode_sealed(key, topic, payload, "cmd", ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31,
                                                       "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31, "ttl_ms", 1, 10000,
                                                       "acc", 1, 10000, "dec", 1, 10000,
-                                                      "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000))
+                                                      "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
+                                                      "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX))
 
 
 def __getattr__(name):

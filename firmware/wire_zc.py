@@ -78,7 +78,7 @@ def check_report(msg, topic):
 # --- commands --------------------------------------------------------------------------------------------------
 
 def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm=None,
-                   rpt_ms=0):
+                   rpt_ms=0, odo_mm_per_m=1000):
     """Sealed command payload.
 
     sid: the controller's session id (a new random int each start); seq: increasing within a session;
@@ -87,9 +87,12 @@ def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mm
     validity, counted on the board's clock from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and
     service deceleration to use (mm/s^2); stop_mm: a service stop target (odometer mm: a station), braked to at the
     service rate and held, not supervised by the trip curve (None: no stop short of eoa_mm); rpt_ms: the report
-    period the controller asks for while this command is valid (ms; 0: the board's own).
+    period the controller asks for while this command is valid (ms; 0: the board's own); odo_mm_per_m: a low
+    bound of the board's odometer millimetres per true metre (its encoder's scale, 1000: it reads true), which the
+    board's braking curves scale its decelerations by, so they hold in true metres.
     """
     msg = {"v": VERSION, "k": "cmd", "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
            "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
-           "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms}
+           "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms,
+           "odo_mm_per_m": odo_mm_per_m}
     return seal(key, topic_command(train_id), json.dumps(msg).replace(" ", "").encode())

@@ -33,12 +33,13 @@ class Bench:
         return wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])
 
     def command(self, v_mmps=500, eoa_mm=5000, ttl_ms=800, sid=1, seq=None, rseq=None, key=KEY, stop_mm=None,
-                rpt_ms=0):
+                rpt_ms=0, odo_mm_per_m=1000):
         if seq is None:
             self.cmd_seq += 1
             seq = self.cmd_seq
         rseq = self.last_report()["seq"] if rseq is None else rseq
-        payload = wire.encode_command(key, "A", seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800, stop_mm, rpt_ms)
+        payload = wire.encode_command(key, "A", seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800, stop_mm, rpt_ms,
+                                      odo_mm_per_m)
         self.unit.on_message(CMD, payload, self.now_ms)
         return payload
 
@@ -163,6 +164,36 @@ def test_the_trip_curve_lies_above_the_service_curve_everywhere():
     unit.eoa_mm = unit.odo_mm + 1000
     assert unit.braking_curve_mmps(800) == pytest.approx(1258.57, abs=0.01)
     assert unit.trip_curve_mmps() == pytest.approx(1400 * ((0.0036 + 2000 / 1400) ** 0.5 - 0.06), abs=0.01)
+
+
+@pytest.mark.parametrize("true_scale", [0.97, 1.0, 1.03])
+def test_the_curves_hold_in_true_metres_with_the_encoder_scale_the_command_states(true_scale):
+    """The curves work in odometer mm; a wheel reading `true_scale` odometer mm per true mm, commanded with a low
+    bound of that (what the controller sends), stops from the trip curve within the true distance to its end of
+    authority, reaction time counted, and rides a service curve no steeper than the service rate in truth. A wheel
+    that reads short, left unscaled (1000), would overrun its authority from the trip curve."""
+    bench = Bench()
+    bench.step()
+    low = int(true_scale * 1000) - 5            # the controller's low bound, floored
+    bench.command(eoa_mm=100000, odo_mm_per_m=low)
+    unit = bench.unit
+    cfg = unit.cfg
+    r_s = cfg["reaction_ms"] / 1000.0
+    for dist_mm in (20, 50, 100, 300, 1000, 3000):
+        unit.eoa_mm = unit.odo_mm + dist_mm
+        true_dist_mm = dist_mm / true_scale
+        v_true = unit.trip_curve_mmps() / true_scale
+        assert v_true * r_s + v_true ** 2 / (2 * cfg["emergency_dec_mmps2"]) <= true_dist_mm + 1e-9, dist_mm
+        v_true = unit.braking_curve_mmps(cfg["dec_mmps2"]) / true_scale
+        service_true_mm = (dist_mm - cfg["stop_window_mm"]) / true_scale
+        assert v_true ** 2 / (2 * cfg["dec_mmps2"]) <= service_true_mm + 1e-9, dist_mm
+        # and it gives away no more than the bound's slack: within 1 % of the true service rate
+        assert v_true ** 2 / (2 * cfg["dec_mmps2"]) >= 0.99 * service_true_mm, dist_mm
+    if true_scale < 1.0:
+        bench.command(eoa_mm=100000, odo_mm_per_m=1000)
+        unit.eoa_mm = unit.odo_mm + 1000
+        v_true = unit.trip_curve_mmps() / true_scale
+        assert v_true * r_s + v_true ** 2 / (2 * cfg["emergency_dec_mmps2"]) > 1000 / true_scale
 
 
 def test_riding_the_curve_behind_a_moving_limit_is_takagi_synchronisation():

@@ -126,3 +126,19 @@ def test_fast_reports_stay_within_the_controllers_report_budget_most_urgent_firs
     if len(wanting) > 1:
         urgent = min(wanting, key=lambda st: (st.fast_need_m, st.train_id))
         assert sim.zc._fast_reports(urgent, sim.zc.now_fn())
+
+
+@pytest.mark.parametrize("scale_error", [-0.03, 0.02])
+def test_the_controller_tells_each_board_a_low_bound_of_its_encoder_scale(scale_error):
+    """A wheel reading 3 % short or 2 % long: once the UKF has learnt the scale, the commands carry a low bound of
+    it (odometer mm per true m), below the truth and within 1.5 % of it, which the board's braking curves use."""
+    from cbtc.scenario import ScenarioConfig, Simulation, TrainSpec
+    from cbtc.train_profile import TrainProfile
+
+    layout = load_layout("itb_square")
+    profile = TrainProfile().with_changes(encoder_scale_error=scale_error, encoder_slip_sigma=0.002)
+    sim = Simulation(ScenarioConfig(layout=layout, seed=2, duration_s=40.0, trains=[TrainSpec("A", 0.0, (), profile)]))
+    sim.run()
+    stated = sim.trains[0].obu.cmd["odo_mm_per_m"]
+    truth = 1000.0 * (1.0 + scale_error)
+    assert truth - 15.0 <= stated <= truth

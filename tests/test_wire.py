@@ -33,6 +33,17 @@ def test_command_round_trip():
     payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
     msg = wire.decode_command(KEY, "cbtc/train/A/cmd", payload)
     assert (msg["seq"], msg["sid"], msg["rseq"], msg["eoa_mm"], msg["ttl_ms"]) == (5, 99, 7, 3000, 800)
+    assert msg["odo_mm_per_m"] == 1000, "a wheel that reads true unless the controller states its scale"
+    scaled = wire.encode_command(KEY, "A", 6, 99, 7, 500, 3000, 800, 600, 800, odo_mm_per_m=1015)
+    assert wire.decode_command(KEY, "cbtc/train/A/cmd", scaled)["odo_mm_per_m"] == 1015
+
+
+@pytest.mark.parametrize("scale", [0, 499, 2001])
+def test_an_encoder_scale_out_of_range_is_refused_naming_the_field(scale):
+    payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800, odo_mm_per_m=scale)
+    with pytest.raises(wire.WireError) as err:
+        wire.decode_command(KEY, "cbtc/train/A/cmd", payload)
+    assert "'odo_mm_per_m'" in err.value.reason
 
 
 def reseal(body: dict, topic="cbtc/train/A/report"):

@@ -299,10 +299,16 @@ class ZoneController:
         payload = wire.encode_command(
             state.setup.key, state.train_id, state.cmd_seq, self.session_id, report["seq"],
             int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
-            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms)
+            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms, self._odo_mm_per_m(state))
         self.client.publish(wire.topic_command(state.train_id), payload)
         if self.on_command is not None:
             self.on_command(state, now_s)
+
+    def _odo_mm_per_m(self, state):
+        """The low bound of the train's encoder scale (odometer mm per true m, floored: the safe side) that its
+        braking curves use; the estimators keep it far inside what the protocol carries."""
+        low = int(state.estimator.odometer_per_m_low(self.params.k_sigma) * 1000.0)
+        return max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, low))
 
     def _fast_reports(self, state, now_s):
         """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
