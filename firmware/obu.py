@@ -109,6 +109,7 @@ class OnboardUnit:
         self.mode = "idle"
         self.v_ref_mmps = 0.0
         self._integral = 0.0
+        self._a_lp = 0.0
         self.duty_pct = 0
         self._last_step_ms = None
         # reporting
@@ -320,11 +321,13 @@ class OnboardUnit:
         # the measured speed is the mean over the speed window, so it lags half a window: compare it with the
         # reference of then (ramps would otherwise wind the integral up and overshoot after them)
         error = self.v_ref_mmps - a_ref * cfg["speed_window_ms"] / 2000.0 - self.v_mmps
-        if a_ref <= 0.0:
-            # the integral learns the steady offset (friction, load, a tired battery) except while the reference
-            # rises: a traction-limited start would wind it up. Riding the curve behind a train ahead, the reference
-            # steps up and down with each end of authority, and it must learn there too (riding 15 mm/s slow costs
-            # 7 mm of gap at 0.4 m/s)
+        # the integral learns the steady offset (friction, load, a tired battery) except in a sustained ramp (the
+        # reference's slope, low-passed over 0.1 s, beyond 200 mm/s^2): a traction-limited start would wind it up.
+        # It learns while the reference steps up and down with each end of authority behind a moving train: a loop
+        # that learnt only at a flat reference never learnt there and rode 15 mm/s slow. (Learning on falling passes
+        # alone biased it upwards: trains following a leader that reported every 50-100 ms tripped.)
+        self._a_lp += (a_ref - self._a_lp) * dt_s / (dt_s + 0.1)
+        if -200.0 < self._a_lp < 200.0:
             self._integral += error * dt_s
             limit = 100.0 / cfg["ki"]
             self._integral = max(-limit, min(limit, self._integral))
@@ -343,6 +346,7 @@ class OnboardUnit:
     def _brake(self):
         self.v_ref_mmps = 0.0
         self._integral = 0.0
+        self._a_lp = 0.0
         self.duty_pct = 0
         self.motor.brake()
 

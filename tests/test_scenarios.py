@@ -73,9 +73,12 @@ def test_moving_block_beats_fixed_block_in_the_paper_scenario():
     assert moving["trains_per_hour"] > fixed["trains_per_hour"]
 
 
-def test_steady_following_keeps_a_safe_gap_near_the_theoretical_minimum():
-    result = steady_following(load_layout("itb_square"), seed=0, duration_s=45.0, settle_s=20.0)
-    assert result["collisions"] == 0 and result["authority_overruns"] == 0
+@pytest.mark.parametrize("report_ms", [None, 50, 100])
+def test_steady_following_keeps_a_safe_gap_near_the_theoretical_minimum(report_ms):
+    """The follower rides its service curve behind the leader's reports without ever tripping, whatever their
+    period: its end of authority steps forward at each report and its speed loop must not overshoot between them."""
+    result = steady_following(load_layout("itb_square"), seed=0, duration_s=45.0, settle_s=20.0, report_ms=report_ms)
+    assert result["collisions"] == 0 and result["authority_overruns"] == 0 and result["emergency_trips"] == 0
     assert 1.0 <= result["achieved_over_theoretical"] < 1.6
 
 
