@@ -272,16 +272,16 @@ class ZoneController:
         supervision."""
         report = state.report
         state.safe_m = safe_m
+        # a low bound of the encoder's scale (odometer m per true m): a wheel that reads short must not carry the
+        # train past its limit; the board's braking curves use it too (odo_mm_per_m)
+        scale_low = state.estimator.odometer_per_m_low(self.params.k_sigma)
         if safe_m is None:
             # no picture of every train: stop now at service rate; the authority never extends
             v_mps = max(0.0, report["v_mmps"] / 1000.0)
             brake_m = v_mps * state.setup.profile.reaction_s + v_mps * v_mps / (2.0 * dec_mps2)
             eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
         else:
-            # metres along the track into the board's odometer units, with a low bound of the encoder's scale: a
-            # wheel that reads short must not carry the train past its limit
-            scale = state.estimator.odometer_per_m_low(self.params.k_sigma)
-            eoa_mm = report["odo_mm"] + int(safe_m * scale * 1000.0)
+            eoa_mm = report["odo_mm"] + int(safe_m * scale_low * 1000.0)   # metres along the track into odometer mm
         if state.eoa_mm is not None and (safe_m is None or self._leader_stale(state, now_s)):
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
@@ -299,16 +299,11 @@ class ZoneController:
         payload = wire.encode_command(
             state.setup.key, state.train_id, state.cmd_seq, self.session_id, report["seq"],
             int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
-            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms, self._odo_mm_per_m(state))
+            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms,
+            max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))   # floored: the safe side
         self.client.publish(wire.topic_command(state.train_id), payload)
         if self.on_command is not None:
             self.on_command(state, now_s)
-
-    def _odo_mm_per_m(self, state):
-        """The low bound of the train's encoder scale (odometer mm per true m, floored: the safe side) that its
-        braking curves use; the estimators keep it far inside what the protocol carries."""
-        low = int(state.estimator.odometer_per_m_low(self.params.k_sigma) * 1000.0)
-        return max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, low))
 
     def _fast_reports(self, state, now_s):
         """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
