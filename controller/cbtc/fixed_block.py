@@ -25,6 +25,7 @@ def equal_blocks(length_m: float, count: int):
 
 class FixedBlockPolicy:
     name = "fixed_block"
+    fast_reports = False   # the authority rests on track circuits, not on the train ahead's reports
 
     def __init__(self, params: AuthorityParams = None, blocks=None, speed_codes=(0.5, 0.75, 1.0),
                  track_circuits=None, code_ber=0.0, seed=0):

@@ -77,7 +77,7 @@ class Trace:
 
 def signed_along_m(layout, s_from_m, s_to_m):
     """Signed along-track distance from `s_from_m` to `s_to_m` (m): the short way round on a loop."""
-    return circular_offset_m(s_to_m, s_from_m, layout.length_m if layout.closed else None)
+    return circular_offset_m(s_to_m, s_from_m, layout.loop_length_m)
 
 
 def records_from_recorder(recorder):

@@ -74,6 +74,7 @@ class Layout:
         self.path = path
         self.closed = path.closed
         self.length_m = path.length_m
+        self.loop_length_m = path.length_m if path.closed else None   # for offsets the short way round; None: a line
         self.segment_count = len(path.segments)
         self.stations = tuple(stations)
         self.tags = tuple(sorted(tags, key=lambda t: t.s_m))

@@ -74,7 +74,7 @@ class OdometryEstimator:
             keep = 2 * self.locate_fixes - 1
             self._fix_anchors = (self._fix_anchors + [self.layout.project(x_m, y_m) - odo_fix_mm / 1000.0])[-keep:]
             found = agreeing_anchor(self._fix_anchors, self.profile.ips_sigma_m, self.locate_fixes,
-                                    self.layout.length_m if self.layout.closed else None)
+                                    self.layout.loop_length_m)
             if found is not None:
                 self._s_ref_m = found[0] + odo_fix_mm / 1000.0
                 self._odo_ref_mm = odo_fix_mm

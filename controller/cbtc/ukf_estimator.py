@@ -275,7 +275,7 @@ class UkfEstimator:
         """(anchor_m, sigma_m) where at least `locate_fixes` of the IPS anchors agree, sigma twice the IPS sigma over
         the root of their number; None when they do not."""
         found = agreeing_anchor(anchors_m, self.profile.ips_sigma_m, self.params.locate_fixes,
-                                self.layout.length_m if self.layout.closed else None)
+                                self.layout.loop_length_m)
         if found is None:
             return None
         return found[0], 2.0 * self.profile.ips_sigma_m / math.sqrt(found[1])

@@ -115,8 +115,8 @@ class ZoneController:
         self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
         self.on_command = None        # callable(state, now_s) after each command is published (supervision, tests)
         # Reports a second this controller is sized for (measured with `cbtc bench latency`: 20 trains at 20 Hz on
-        # two shared cores, its own compute p99 under 2.5 ms a report; 1000 a second saturated it). Every train reports at the board's own rate; what is left pays
-        # for fast reports, each fast train costing the difference.
+        # two shared cores, its own compute p99 under 2.5 ms a report; 1000 a second saturated it). Every train
+        # reports at the board's own rate; what is left pays for fast reports, each fast train costing the difference.
         base_hz = 1000.0 / obu.DEFAULTS["report_ms"]
         extra_hz = 1000.0 / self.params.fast_report_ms - base_hz
         spare_hz = report_budget_hz - base_hz * len(self.trains)
@@ -309,7 +309,7 @@ class ZoneController:
         """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
         fixed blocks rest on track circuits), a train behind is held by it, and it is among the `fast_slots` trains
         whose followers have the least authority left."""
-        if now_s >= state.fast_until_s or not getattr(self.policy, "fast_reports", False):
+        if now_s >= state.fast_until_s or not self.policy.fast_reports:
             return False
         wanting = [st for st in self.trains.values() if now_s < st.fast_until_s]
         if len(wanting) <= self.fast_slots:
