@@ -35,22 +35,23 @@ DEFAULTS = {
     "acc_mmps2": 600,         # acceleration when a command does not say (mm/s^2)
     "dec_mmps2": 800,         # service deceleration: the braking curve to the end of authority (mm/s^2)
     "emergency_dec_mmps2": 1400,  # what the motor brake delivers: the trip curve (mm/s^2)
-    "kp": 0.05,               # PI proportional gain (% duty per mm/s)
+    "kp": 0.1,                # PI proportional gain (% duty per mm/s; 0.05 rode 40 mm/s over a rising curve)
     "ki": 0.25,               # PI integral gain (% duty per mm of accumulated error)
     "reaction_ms": 60,        # time from a speed excess to braking effect, counted into the braking curve (ms)
     "motor_tau_ms": 250,      # motor + inertia time constant, for the acceleration feed-forward (ms)
-    "speed_window_ms": 100,   # encoder speed is counts over this window (ms)
+    "speed_window_ms": 20,    # encoder speed: counts between edges at least this far apart, over their time (ms)
     "trip_margin_mmps": 40,   # speed above the emergency braking curve that trips the motor brake (mm/s)
     "max_data_age_ms": 1000,  # a command based on an older report of ours is stale and refused (ms)
     "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
     "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
-    "stop_window_mm": 10,     # the service curve ends this short of the end of authority: 38 mm/s under the trip (mm)
+    "stop_window_mm": 5,      # the service curve ends this short of the end of authority: 11 mm/s under the trip (mm)
     "guard_margin_mm": 100,   # collision guard: measured gap kept beyond the emergency braking distance (mm)
     "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
 }
 
 _HISTORY = const(12)     # reports remembered for matching commands to the report they are based on
 _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
+_US_WRAP = const(262144000)   # edge times (us) wrap with the board's ms at 2^18: small ints; spans are < 1 s
 _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
 
 
@@ -93,10 +94,9 @@ class OnboardUnit:
         # odometry
         self.odo_mm = 0
         self.v_mmps = 0
-        self._ring_t = [0] * _SPEED_RING
-        self._ring_odo = [0] * _SPEED_RING
+        self._ring_t = [0] * _SPEED_RING   # edge times (us, wrapping at _US_WRAP)
+        self._ring_n = [0] * _SPEED_RING   # and their counts
         self._ring_i = 0
-        self._ring_n = 0
         self._last_move_ms = 0
         # authority
         self.sid = -1
@@ -179,8 +179,12 @@ class OnboardUnit:
 
     def _sample(self, now_ms):
         # a failed sensor is counted and named, never allowed to stop the loop
+        count = self._ring_n[self._ring_i - 1]   # a failed encoder: as if no edge came
+        age_us = 0
         try:
-            odo_mm = self.encoder.count() * 1000 // self.cfg["counts_per_m"]
+            count = self.encoder.count()
+            age_us = self.encoder.age_us   # 0 from an encoder that does not time its edges
+            odo_mm = count * 1000 // self.cfg["counts_per_m"]
             if odo_mm != self.odo_mm:
                 self._last_move_ms = now_ms
             self.odo_mm = odo_mm
@@ -211,23 +215,36 @@ class OnboardUnit:
                     self._rng_report = [now_ms, self.gap_mm]
             except Exception as exc:
                 self._sensor_failed("ranging", exc)
-        # speed: odometer change over the oldest snapshot inside the window (at least the previous one)
+        # speed (the M/T method): the counts between the newest edge and the newest edge at least a speed window
+        # before it that has another count, over the exact time between the two. An encoder that times its edges says
+        # how long before its count was read the newest edge came (`age_us`); one that does not stands each new count
+        # at its sample (age 0). A count keeps its edge's time (at most a second old: spans never wrap). No such edge
+        # in the ring: standing. Integers throughout: no float for the heap to hold, small ints on a 32-bit board
         i = self._ring_i
-        self._ring_t[i] = now_ms
-        self._ring_odo[i] = self.odo_mm
+        now_us = (now_ms & 0x3FFFF) * 1000
+        edge_us = self._ring_t[i - 1]
+        if count != self._ring_n[i - 1]:
+            edge_us = now_us - age_us
+        elif (now_us - edge_us) % _US_WRAP > 1000000:
+            edge_us = now_us - 1000000
+        edge_us %= _US_WRAP
+        self._ring_t[i] = edge_us
+        self._ring_n[i] = count
         self._ring_i = (i + 1) % _SPEED_RING
-        if self._ring_n < _SPEED_RING:
-            self._ring_n += 1
-        best = -1
-        for k in range(1, self._ring_n):
+        cfg = self.cfg
+        window_us = cfg["speed_window_ms"] * 1000
+        v_mmps = 0
+        for k in range(1, _SPEED_RING):   # unfilled slots hold count 0 at time 0: at worst a low first speed
             j = (i - k) % _SPEED_RING
-            best = j
-            if now_ms - self._ring_t[j] >= self.cfg["speed_window_ms"]:
+            span_us = (edge_us - self._ring_t[j]) % _US_WRAP
+            if span_us >= window_us and self._ring_n[j] != count:
+                v_mmps = (count - self._ring_n[j]) * 1000000 // cfg["counts_per_m"] * 1000 // span_us
                 break
-        if best < 0 or now_ms == self._ring_t[best]:
-            self.v_mmps = 0
-        else:
-            self.v_mmps = (self.odo_mm - self._ring_odo[best]) * 1000 // (now_ms - self._ring_t[best])
+        age_us = (now_us - edge_us) % _US_WRAP
+        if age_us:
+            # no edge for longer than a count takes at this speed: it is slower, at most a count over that time
+            v_mmps = min(v_mmps, 1000000 // cfg["counts_per_m"] * 1000 // age_us)
+        self.v_mmps = v_mmps
 
     def odo_scale(self):
         """Odometer mm per true mm, a low bound from the newest command (1.0 before any): the curves below work in
@@ -318,8 +335,8 @@ class OnboardUnit:
         if self.v_ref_mmps <= 0:   # a standstill target: brake (stop and hold), do not coast
             self._brake()
             return
-        # the measured speed is the mean over the speed window, so it lags half a window: compare it with the
-        # reference of then (ramps would otherwise wind the integral up and overshoot after them)
+        # the measured speed is the mean between two edges at least a speed window apart, so it lags about half a
+        # window: compare it with the reference of then (ramps would otherwise wind the integral up and overshoot)
         error = self.v_ref_mmps - a_ref * cfg["speed_window_ms"] / 2000.0 - self.v_mmps
         # the integral learns the steady offset (friction, load, a tired battery) except in a sustained ramp (the
         # reference's slope, low-passed over 0.1 s, beyond 200 mm/s^2): a traction-limited start would wind it up.

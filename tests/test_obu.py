@@ -3,7 +3,7 @@
 import pytest
 
 from cbtc.firmware_modules import obu, wire
-from fake_drivers import BrokenSensor, FakeEncoder, FakeIps, FakeMotor, FakeRfid
+from fake_drivers import BrokenSensor, FakeEncoder, FakeIps, FakeMotor, FakeRfid, TimedEncoder
 
 KEY = b"0123456789abcdef"
 CMD = "cbtc/train/A/cmd"
@@ -22,10 +22,16 @@ class Bench:
         self._travel_mm = 0.0
 
     def step(self, ms=20, v_mmps=None):
-        """Advance board time; optionally move the train at v_mmps (the encoder counts 1 per mm)."""
+        """Advance board time; optionally move the train at v_mmps (the encoder counts 1 per mm; one that times its
+        edges is told how long ago the newest one came)."""
         self.now_ms += ms
+        timed = isinstance(self.enc, TimedEncoder)
+        if timed:
+            self.enc.age_us += ms * 1000
         if v_mmps:
             self._travel_mm += v_mmps * ms / 1000.0   # whole counts of the distance travelled, fractions kept
+            if int(self._travel_mm) != self.enc.counts and timed:
+                self.enc.age_us = int((self._travel_mm - int(self._travel_mm)) / v_mmps * 1e6)
             self.enc.counts = int(self._travel_mm)
         self.unit.step(self.now_ms)
 
@@ -148,22 +154,59 @@ def test_unknown_config_key_is_named():
 
 
 def test_the_trip_curve_lies_above_the_service_curve_everywhere():
-    """Riding the service curve never trips: at every distance the emergency curve (reaction time counted) is higher,
-    by at least 35 mm/s of tracking error (the trip margin covers the speed window's lag at the service rate). The
-    stop window is what keeps it so near the end: 10 mm leaves 38 mm/s; the curves would cross below 3.4 mm, and 6 mm
-    (17 mm/s) tripped trains approaching standing limits in six-train runs."""
+    """Riding the service curve never trips: at every distance the emergency curve (reaction time counted) plus the
+    trip margin is above the service curve by more than the measured speed can lag at the service rate, with at
+    least 25 mm/s left for tracking error. The speed is the mean between two edges, so it lags by the newest edge's
+    age (up to an edge interval) and half their span (the speed window and up to an edge interval). The stop window
+    is what keeps it so near the end: the curves cross below 3.4 mm; 5 mm leaves 11 mm/s between them and 29 mm/s
+    for tracking; 4 mm would leave 19."""
     bench = Bench()
     unit = bench.unit
-    window = unit.cfg["stop_window_mm"]
-    lag_mmps = unit.cfg["dec_mmps2"] * unit.cfg["speed_window_ms"] / 2000.0
-    assert unit.cfg["trip_margin_mmps"] >= lag_mmps
+    cfg = unit.cfg
+    window = cfg["stop_window_mm"]
     for dist_mm in range(window + 1, 3000):
         unit.eoa_mm = unit.odo_mm + dist_mm
-        assert unit.trip_curve_mmps() - unit.braking_curve_mmps(unit.cfg["dec_mmps2"]) >= 35.0, dist_mm
-    # by hand at 1 m: service sqrt(2 * 800 * 990) = 1258.6 mm/s; trip 1400 (sqrt(0.06^2 + 2 * 1000 / 1400) - 0.06)
+        service = unit.braking_curve_mmps(cfg["dec_mmps2"])
+        if service == 0:
+            continue                         # the creep: stopped and held
+        edge_ms = 1e6 / (service * cfg["counts_per_m"])
+        lag_ms = edge_ms + (cfg["speed_window_ms"] + edge_ms) / 2
+        room = unit.trip_curve_mmps() + cfg["trip_margin_mmps"] - service - cfg["dec_mmps2"] * lag_ms / 1000
+        assert room >= 25.0, dist_mm
+    # by hand at 1 m: service sqrt(2 * 800 * 995) = 1261.7 mm/s; trip 1400 (sqrt(0.06^2 + 2 * 1000 / 1400) - 0.06)
     unit.eoa_mm = unit.odo_mm + 1000
-    assert unit.braking_curve_mmps(800) == pytest.approx(1258.57, abs=0.01)
+    assert unit.braking_curve_mmps(800) == pytest.approx((1600 * (1000 - window)) ** 0.5, abs=0.01)
     assert unit.trip_curve_mmps() == pytest.approx(1400 * ((0.0036 + 2000 / 1400) ** 0.5 - 0.06), abs=0.01)
+
+
+def test_with_timed_edges_the_speed_is_exact_and_fresh():
+    """An encoder that times its edges gives the speed to the mm/s at every pass, with a lag of about half the speed
+    window; counts over the time between passes alone are off by up to a count per window (50 mm/s in 20 ms)."""
+    timed, counted = Bench(encoder=TimedEncoder()), Bench()
+    readings = {"timed": [], "counted": []}
+    for _ in range(60):
+        for name, bench in (("timed", timed), ("counted", counted)):
+            bench.step(v_mmps=392.3)
+            readings[name].append(bench.unit.v_mmps)
+    assert all(abs(v - 392) <= 1 for v in readings["timed"][10:]), readings["timed"]
+    assert max(readings["counted"][10:]) - min(readings["counted"][10:]) >= 40, readings["counted"]
+
+
+def test_with_timed_edges_a_train_that_stops_reads_slower_at_every_pass_without_an_edge():
+    """After the last edge the speed is at most a count over the time since it (it would have counted more, had it
+    been faster), then 0 once no edge is left in the unit's memory of passes."""
+    bench = Bench(encoder=TimedEncoder())
+    for _ in range(30):
+        bench.step(v_mmps=300)
+    assert abs(bench.unit.v_mmps - 300) <= 1
+    readings, ages = [], []
+    for _ in range(12):
+        bench.step()                                       # no more edges
+        readings.append(bench.unit.v_mmps)
+        ages.append(bench.enc.age_us)
+    assert all(v <= 1e6 / age for v, age in zip(readings, ages)), (readings, ages)   # a count over the age at most
+    assert all(b < a for a, b in zip(readings, readings[1:]) if a), readings
+    assert readings[0] >= 40 and readings[-1] == 0
 
 
 @pytest.mark.parametrize("true_scale", [0.97, 1.0, 1.03])

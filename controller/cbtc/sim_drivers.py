@@ -15,23 +15,40 @@ from .ips_frame import track_to_ips
 
 
 class SimEncoder:
-    """Edge counts of a slotted wheel: true distance scaled by the wheel error, plus slip, floored to counts."""
+    """Edge counts of a slotted wheel: true distance scaled by the wheel error, plus slip, floored to counts; and the
+    time of the newest edge, as the board's interrupt notes it (`age_us` after `count()`: us since that edge)."""
 
     def __init__(self, profile, rng):
         self._profile = profile
         self._rng = rng
         self.distance_m = 0.0  # what the wheel has rolled (with errors), not what the train travelled
         self.scale_fault = 1.0  # fault injection: counts run this many times too fast (1.0: healthy)
+        self._since_edge_s = 0.0
+        self.age_us = 0
 
-    def advance(self, ds_m: float) -> None:
-        """The train travelled `ds_m` (m, >= 0) in truth."""
+    def advance(self, ds_m: float, dt_s: float = 0.0, v0_mps: float = 0.0, a_mps2: float = 0.0) -> None:
+        """The train travelled `ds_m` (m, >= 0) in truth over `dt_s` seconds, starting at `v0_mps` under constant
+        `a_mps2` (what the physics step did): the newest edge's time comes from that motion."""
+        self._since_edge_s += dt_s
         if ds_m <= 0.0:
             return
         p = self._profile
         slip = self._rng.normal(0.0, p.encoder_slip_sigma) if p.encoder_slip_sigma > 0 else 0.0
-        self.distance_m += ds_m * (1.0 + p.encoder_scale_error + slip) * self.scale_fault
+        factor = (1.0 + p.encoder_scale_error + slip) * self.scale_fault
+        before = self.distance_m
+        self.distance_m += ds_m * factor
+        newest = math.floor(self.distance_m * p.counts_per_m)
+        if dt_s <= 0.0 or newest <= math.floor(before * p.counts_per_m):
+            return
+        x_m = (newest / p.counts_per_m - before) / factor     # true travel into the step at the newest edge
+        if abs(a_mps2) < 1e-9:
+            tau_s = x_m / v0_mps if v0_mps > 0 else dt_s
+        else:
+            tau_s = (math.sqrt(max(0.0, v0_mps * v0_mps + 2.0 * a_mps2 * x_m)) - v0_mps) / a_mps2
+        self._since_edge_s = dt_s - min(max(tau_s, 0.0), dt_s)
 
     def count(self) -> int:
+        self.age_us = min(int(round(self._since_edge_s * 1e6)), 1000000)
         return int(math.floor(self.distance_m * self._profile.counts_per_m))
 
 

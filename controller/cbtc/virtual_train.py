@@ -72,10 +72,12 @@ class VirtualTrain:
         self._last_s = now_s
         self._now_s = now_s
         if dt_s > 0 and not self.stopped_dead:
-            s_before = self.travelled_m
+            s_before, v_before = self.travelled_m, self.v_mps
             self.travelled_m, self.v_mps, self.a_mps2 = physics.step(
                 self.travelled_m, self.v_mps, self.motor.duty_pct, self.motor.mode, dt_s, self.profile)
-            self.encoder.advance(self.travelled_m - s_before)
+            self.encoder.advance(self.travelled_m - s_before, dt_s, v_before, self.a_mps2)
+        elif dt_s > 0:
+            self.encoder.advance(0.0, dt_s)
         if self.frozen:
             return
         now_ms = self.board_ms(now_s)

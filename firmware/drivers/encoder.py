@@ -3,8 +3,11 @@
 Encoder(pin_a, pin_b=None) takes ready `machine.Pin` inputs. One channel: every edge counts +1 (monotonic: the
 direction comes from the motor command, not from the sensor). Two channels: x4 quadrature decoding, signed (A leading B
 counts up). The interrupt handlers touch only preallocated ints: read the level, reject a repeated level (a bounce or a
-missed edge seen twice), count, return. ESP8266 pin IRQs are soft: the handler runs late, so it reads the levels
-itself instead of trusting the trigger.
+missed edge seen twice), count, note the time of the edge, return. They are hard interrupts (the ESP8266 has them), so
+the time is the edge's own; they read the levels themselves rather than trust the trigger.
+
+Each edge's time makes the speed exact to the edge (the M/T method in the OnboardUnit): `count()` also sets `age_us`,
+how long before the read the newest counted edge came (capped at 1 s; an edge older than that is only "old").
 """
 
 try:
@@ -12,6 +15,8 @@ try:
 except ImportError:  # CPython
     def const(value):
         return value
+
+from time import ticks_diff, ticks_us   # CPython has none: the host checks lend it MicroPython's (tests/mpy)
 
 _RISING = const(1)       # machine.Pin.IRQ_RISING on the ESP8266
 _FALLING = const(2)      # machine.Pin.IRQ_FALLING
@@ -29,26 +34,39 @@ class Encoder:
         self.pin_a = pin_a
         self.pin_b = pin_b
         self._count = 0
+        self._edge_us = ticks_us()   # as if an edge at start: the first age is the time standing since
+        self.age_us = 0
         self._level_a = pin_a.value()
         trigger = getattr(pin_a, "IRQ_RISING", _RISING) | getattr(pin_a, "IRQ_FALLING", _FALLING)
         if pin_b is None:
-            pin_a.irq(trigger=trigger, handler=self._edge)
+            pin_a.irq(trigger=trigger, handler=self._edge, hard=True)
         else:
             self._state = (self._level_a << 1) | pin_b.value()
-            pin_a.irq(trigger=trigger, handler=self._quad_edge)
-            pin_b.irq(trigger=trigger, handler=self._quad_edge)
+            pin_a.irq(trigger=trigger, handler=self._quad_edge, hard=True)
+            pin_b.irq(trigger=trigger, handler=self._quad_edge, hard=True)
 
     def _edge(self, _):
         level = self.pin_a.value()
         if level != self._level_a:
             self._level_a = level
             self._count += 1
+            self._edge_us = ticks_us()
 
     def _quad_edge(self, _):
         state = (self.pin_a.value() << 1) | self.pin_b.value()
-        self._count += _QUAD[(self._state << 2) | state]
+        step = _QUAD[(self._state << 2) | state]
+        if step:
+            self._count += step
+            self._edge_us = ticks_us()
         self._state = state
 
     def count(self):
-        """Snapshot of the edge count (counts; signed with two channels)."""
-        return self._count
+        """Snapshot of the edge count (counts; signed with two channels); sets `age_us`, us since that count's edge
+        (it wraps after 2^29 us, 9 min, of standing: the OnboardUnit takes a count's age only when the count is new)."""
+        count = self._count
+        edge_us = self._edge_us
+        while count != self._count:   # an edge came between the two reads (the handler may run at any bytecode)
+            count = self._count
+            edge_us = self._edge_us
+        self.age_us = ticks_diff(ticks_us(), edge_us)
+        return count

@@ -27,9 +27,10 @@ class Pin:
     duty_u16 = value   # PWM: reads back the last duty
     feed = value       # WDT: feeding does nothing (without an argument, value() only reads)
 
-    def irq(self, trigger, handler):
+    def irq(self, trigger, handler, hard=False):
         self.trigger = trigger
         self.handler = handler
+        self.hard = hard
 
     def write_readinto(self, data, buf):
         buf[:] = bytes(len(data))
