@@ -7,7 +7,7 @@ missed edge seen twice), count, note the time of the edge, return. They are hard
 the time is the edge's own; they read the levels themselves rather than trust the trigger.
 
 Each edge's time makes the speed exact to the edge (the M/T method in the OnboardUnit): `count()` also sets `age_us`,
-how long before the read the newest counted edge came (capped at 1 s; an edge older than that is only "old").
+how long before the read the newest counted edge came.
 """
 
 try:
