@@ -209,6 +209,26 @@ def test_with_timed_edges_a_train_that_stops_reads_slower_at_every_pass_without_
     assert readings[0] >= 40 and readings[-1] == 0
 
 
+def test_with_timed_edges_a_start_after_a_long_stand_reads_no_faster_than_the_train():
+    """The board's tick counter wraps after 9 min, so a standing count's age can turn to nonsense: after 10 min
+    standing (past the unit's own 262 s wrap of edge times too), with the age wrapped to 0 just before the start, the
+    first edges read no faster than the train goes."""
+    bench = Bench(encoder=TimedEncoder())
+    for _ in range(30):
+        bench.step(v_mmps=300)
+    for _ in range(30000):                     # 10 min standing
+        bench.step()
+    bench.enc.age_us = -20 * 1000
+    bench.step()                               # the encoder's age has wrapped to 0 just before the train moves
+    assert bench.unit.v_mmps == 0
+    readings = []
+    for _ in range(10):
+        bench.step(v_mmps=100)
+        readings.append(bench.unit.v_mmps)
+    assert max(readings) <= 101, readings
+    assert readings[-1] >= 95, readings
+
+
 @pytest.mark.parametrize("true_scale", [0.97, 1.0, 1.03])
 def test_the_curves_hold_in_true_metres_with_the_encoder_scale_the_command_states(true_scale):
     """The curves work in odometer mm; a wheel reading `true_scale` odometer mm per true mm, commanded with a low

@@ -52,7 +52,7 @@ def check_encoder_quadrature():
 try:
     from time import ticks_add
     TICKS_PERIOD = ticks_add(0, -1) + 1      # 2^30 on the ESP8266; wider on a 64-bit port
-except ImportError:  # CPython: the driver's own ticks
+except ImportError:  # CPython: host_ticks, which wraps as the ESP8266 does
     TICKS_PERIOD = 0x40000000
 
 
