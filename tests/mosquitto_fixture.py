@@ -11,7 +11,12 @@ import os
 
 import pytest
 
-from cbtc.broker_config import MosquittoProcess, free_port, mosquitto_exe, write_config
+from cbtc.bus.broker_config import (
+    MosquittoProcess,
+    free_port,
+    mosquitto_exe,
+    write_config,
+)
 
 requires_mosquitto = pytest.mark.skipif(not mosquitto_exe(), reason="mosquitto is not installed")
 

@@ -1,6 +1,6 @@
 """Run code under the MicroPython unix port with the host shims, the firmware and umqtt on its path.
 
-Boards get the firmware precompiled (cbtc.mpy_build), so the tests do too: `build_tree(out_dir)` compiles the
+Boards get the firmware precompiled (cbtc.board.mpy_build), so the tests do too: `build_tree(out_dir)` compiles the
 firmware, the host shims (tests/mpy/shims: our `machine` and `network` replace the port's), the fakes and checks of
 tests/mpy and umqtt.simple (vendor/, fetched by tools/fetch_umqtt.py) into one folder. MICROPYPATH is that folder,
 then `.frozen` (the port's built-in modules such as asyncio).
@@ -12,7 +12,7 @@ import subprocess
 
 import pytest
 
-from cbtc.mpy_build import build, mpy_cross_command
+from cbtc.board.mpy_build import build, mpy_cross_command
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHIMS_DIR = os.path.join(REPO, "tests", "mpy", "shims")
@@ -30,7 +30,7 @@ requires_umqtt = pytest.mark.skipif(
 
 
 def _compile(src, out_dir, rel, opt=()):
-    """Compile `src` to `out_dir`/`rel`, naming its source `rel` as cbtc.mpy_build does."""
+    """Compile `src` to `out_dir`/`rel`, naming its source `rel` as cbtc.board.mpy_build does."""
     target = os.path.join(out_dir, rel)
     os.makedirs(os.path.dirname(target), exist_ok=True)
     proc = subprocess.run(mpy_cross_command() + list(opt) + ["-s", rel, "-o", target, src], capture_output=True,

@@ -2,10 +2,10 @@
 
 import pytest
 
-from cbtc import balise
 from cbtc.firmware_modules import wire
-from cbtc.layout import load_layout
-from cbtc.scenario import Simulation, paper_scenario
+from cbtc.railway import balise
+from cbtc.railway.layout import load_layout
+from cbtc.sim.simulation import Simulation, paper_scenario
 
 KEY = b"0123456789abcdef"
 

@@ -17,11 +17,16 @@ import threading
 import time
 
 import paho.mqtt.client as mqtt
-import pytest
 
 from cbtc.firmware_modules import wire
-from mpy_harness import (MPY_TESTS_DIR, SHIMS_DIR, micropython_argv, micropython_env, requires_micropython,
-                          requires_umqtt)
+from mpy_harness import (
+    MPY_TESTS_DIR,
+    SHIMS_DIR,
+    micropython_argv,
+    micropython_env,
+    requires_micropython,
+    requires_umqtt,
+)
 
 for _folder in (SHIMS_DIR, MPY_TESTS_DIR):
     if _folder not in sys.path:

@@ -7,10 +7,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cbtc.calibration import align_ips, counts_per_m, survey_tags, tags_yaml
+from cbtc.board.calibration import align_ips, counts_per_m, survey_tags, tags_yaml
 from cbtc.cli import main as cli_main
 from cbtc.errors import ConfigError
-from cbtc.ips_frame import track_to_ips
+from cbtc.railway.ips_frame import track_to_ips
 
 
 def test_counts_per_m_is_least_squares_through_the_origin():

@@ -4,8 +4,17 @@ import math
 
 import pytest
 
-from cbtc.authority import braking_curve_speed_mps, minimum_gap_m, moving_block_distance_m, AuthorityParams
-from cbtc.control_laws import departure_accelerations_mps2, departure_k_for, sync_deceleration_mps2
+from cbtc.authority.control_laws import (
+    departure_accelerations_mps2,
+    departure_k_for,
+    sync_deceleration_mps2,
+)
+from cbtc.authority.rules import (
+    AuthorityParams,
+    braking_curve_speed_mps,
+    minimum_gap_m,
+    moving_block_distance_m,
+)
 
 
 def test_eq23_minimum_gap_by_hand():

@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from mpy_harness import MPY_TESTS_DIR, SHIMS_DIR, requires_micropython, run_micropython
 from cbtc.firmware_modules import FIRMWARE_DIR
+from mpy_harness import MPY_TESTS_DIR, SHIMS_DIR, requires_micropython, run_micropython
 
 for _folder in (SHIMS_DIR, MPY_TESTS_DIR, FIRMWARE_DIR):
     if _folder not in sys.path:

@@ -11,8 +11,8 @@ import subprocess
 
 import pytest
 
+from cbtc.board.mpy_build import build
 from cbtc.firmware_modules import wire
-from cbtc.mpy_build import build
 
 MICROPYTHON = shutil.which("micropython")
 pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "

@@ -2,7 +2,7 @@
 
 import pytest
 
-from cbtc.fix_consensus import agreeing_anchor, circular_offset_m
+from cbtc.estimation.fix_consensus import agreeing_anchor, circular_offset_m
 
 
 def test_offsets_take_the_short_way_round_a_loop():

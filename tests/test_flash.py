@@ -10,9 +10,9 @@ import time
 
 import pytest
 
+from cbtc.board.flash import flash, parse_broker, train_config_source
 from cbtc.cli import main as cli_main
 from cbtc.errors import BoardError, ConfigError
-from cbtc.flash import flash, parse_broker, train_config_source
 from mpy_harness import build_host_only, requires_micropython, requires_umqtt
 from pty_board import PtyBoard
 from test_board_mqtt import KEY, Controller, Mosquitto, free_port

@@ -19,8 +19,8 @@ import sys
 
 import pytest
 
+from cbtc.board.mpy_build import build
 from cbtc.firmware_modules import wire
-from cbtc.mpy_build import build
 from mpy_harness import MPY_TESTS_DIR, REPO, SHIMS_DIR, VENDOR_DIR, _compile
 
 WASM_DIR = os.path.join(REPO, "tests", "wasm")

@@ -8,7 +8,14 @@ import yaml
 
 from cbtc.cli import main as cbtc_main
 from cbtc.errors import LayoutError
-from cbtc.layout import CLOSE_TOLERANCE_DEG, CLOSE_TOLERANCE_M, Block, layout_from_dict, layout_names, load_layout
+from cbtc.railway.layout import (
+    CLOSE_TOLERANCE_DEG,
+    CLOSE_TOLERANCE_M,
+    Block,
+    layout_from_dict,
+    layout_names,
+    load_layout,
+)
 
 SHIPPED = {"itb_square", "lego_oval", "lego_chicane", "straight_test"}
 

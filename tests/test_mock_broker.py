@@ -2,9 +2,9 @@
 
 import pytest
 
-from cbtc.bus import BusClient, topic_matches, validate_filter, validate_topic
+from cbtc.bus.client import BusClient, topic_matches, validate_filter, validate_topic
+from cbtc.bus.mock_broker import LinkProfile, MockBroker
 from cbtc.errors import BusError
-from cbtc.mock_broker import LinkProfile, MockBroker
 from cbtc.scheduler import VirtualScheduler
 
 

@@ -15,9 +15,9 @@ import time
 
 import pytest
 
+from cbtc.bus.paho_bus import PahoBus
 from cbtc.errors import BusError
 from cbtc.firmware_modules import wire
-from cbtc.paho_bus import PahoBus
 
 pytestmark = pytest.mark.mosquitto
 

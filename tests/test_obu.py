@@ -3,7 +3,14 @@
 import pytest
 
 from cbtc.firmware_modules import obu, wire
-from fake_drivers import BrokenSensor, FakeEncoder, FakeIps, FakeMotor, FakeRfid, TimedEncoder
+from fake_drivers import (
+    BrokenSensor,
+    FakeEncoder,
+    FakeIps,
+    FakeMotor,
+    FakeRfid,
+    TimedEncoder,
+)
 
 KEY = b"0123456789abcdef"
 CMD = "cbtc/train/A/cmd"
@@ -263,7 +270,7 @@ def test_riding_the_curve_behind_a_moving_limit_is_takagi_synchronisation():
     """The end of authority advances with a leader that slows from 0.6 to 0.2 m/s at 0.3 m/s^2; the follower starts on
     its service curve at 0.6 m/s. Riding the curve, its speed follows eq. 24, dv_B/dt = -beta_s (v_B - v_A) / v_B,
     integrated alongside, and it ends at the leader's speed, still on the curve."""
-    from cbtc.control_laws import sync_deceleration_mps2
+    from cbtc.authority.control_laws import sync_deceleration_mps2
 
     bench = Bench()
     unit = bench.unit

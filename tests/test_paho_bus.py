@@ -9,9 +9,9 @@ import time
 
 import pytest
 
-from cbtc.bus import BusClient
+from cbtc.bus.client import BusClient
+from cbtc.bus.paho_bus import Inbox, PahoBus, parse_broker_url, topic_qos
 from cbtc.errors import BusError, ConfigError
-from cbtc.paho_bus import Inbox, PahoBus, parse_broker_url, topic_qos
 
 
 def wait_for(predicate, timeout_s, what, inbox=None):
@@ -104,7 +104,7 @@ def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto
         bus.disconnect()
         wait_for(lambda: seen[-1] == ("cbtc/train/A/status", b"offline"), 3.0, "offline on a clean exit")
         # an abrupt end (the process dies, no DISCONNECT): the broker publishes the last will
-        code = ("import os, sys, time; from cbtc.paho_bus import PahoBus; "
+        code = ("import os, sys, time; from cbtc.bus.paho_bus import PahoBus; "
                 f"PahoBus('{mosquitto.url}', 'train-B', status_topic='cbtc/train/B/status').start(); "
                 "time.sleep(0.3); os._exit(0)")
         subprocess.run([sys.executable, "-c", code], check=True, timeout=20)

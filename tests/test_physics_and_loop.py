@@ -5,14 +5,14 @@ import math
 import numpy as np
 import pytest
 
-from cbtc import physics
-from cbtc.firmware_modules import wire
-from cbtc.layout import load_layout
-from cbtc.mock_broker import MockBroker
-from cbtc.scheduler import VirtualScheduler
-from cbtc.train_profile import TrainProfile
-from cbtc.virtual_train import VirtualTrain
+from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
+from cbtc.firmware_modules import wire
+from cbtc.railway import physics
+from cbtc.railway.layout import load_layout
+from cbtc.railway.train_profile import TrainProfile
+from cbtc.scheduler import VirtualScheduler
+from cbtc.sim.virtual_train import VirtualTrain
 
 P = TrainProfile()
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from cbtc import pn_codes
 from cbtc.errors import ConfigError
+from cbtc.ranging import pn_codes
 
 
 @pytest.mark.parametrize("n_bits", [5, 7, 10])

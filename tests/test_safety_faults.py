@@ -5,11 +5,11 @@ import json
 import numpy as np
 import pytest
 
-from cbtc.layout import load_layout
-from cbtc.mock_broker import LinkProfile
-from cbtc.physics import braking_distance_m
-from cbtc.scenario import ScenarioConfig, Simulation, TrainSpec, paper_scenario
-from cbtc.train_profile import TrainProfile
+from cbtc.bus.mock_broker import LinkProfile
+from cbtc.railway.layout import load_layout
+from cbtc.railway.physics import braking_distance_m
+from cbtc.railway.train_profile import TrainProfile
+from cbtc.sim.simulation import ScenarioConfig, Simulation, TrainSpec, paper_scenario
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +132,7 @@ def test_estimates_track_truth_in_the_demo(square):
 def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     """A train's board reboots mid-run: seq and clock start again; the controller re-locates it before it moves."""
     from cbtc.firmware_modules import obu as obu_module
-    from cbtc.sim_drivers import SimIps
+    from cbtc.sim.drivers import SimIps
     sim = Simulation(paper_scenario(square, seed=6, laps=None, duration_s=60))
     run_to(sim, 15.0)
     train = sim.trains[1]

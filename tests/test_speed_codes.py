@@ -2,9 +2,9 @@
 
 import pytest
 
-from cbtc.layout import load_layout
-from cbtc.scenario import Simulation, paper_scenario
-from cbtc.speed_code_channel import SpeedCodeChannel
+from cbtc.authority.speed_code_channel import SpeedCodeChannel
+from cbtc.railway.layout import load_layout
+from cbtc.sim.simulation import Simulation, paper_scenario
 
 
 def test_a_clean_channel_delivers_every_code():

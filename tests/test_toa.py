@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from cbtc import toa
-from cbtc.layout import load_layout
+from cbtc.railway.layout import load_layout
+from cbtc.ranging import toa
 
 
 def test_clock_offset_cancels_for_random_offsets():
@@ -38,7 +38,7 @@ def test_measurement_model_on_a_layout():
 
 
 def test_ukf_range_update_pulls_the_estimate_toward_truth():
-    from cbtc.track_ukf import NoiseModel, TrackUkf
+    from cbtc.estimation.track_ukf import NoiseModel, TrackUkf
     layout = load_layout("straight_test")
     noise = NoiseModel(0.02, 1e-6, 1e-6, 1e-6, 0.05 ** 2, 1e-6, 0.015, 0.02, 0.999)
     f = TrackUkf(layout, noise, [1.0, 0.0, 0.0], np.diag([0.1 ** 2, 0.01, 1e-6]), 0.0)

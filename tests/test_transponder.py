@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from cbtc import transponder as tp
+from cbtc.ranging import transponder as tp
 
 
 def test_noise_free_receiver_reads_sub_chip_delay_exactly():

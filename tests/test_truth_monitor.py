@@ -2,7 +2,7 @@
 
 from types import SimpleNamespace
 
-from cbtc.live import TruthMonitor
+from cbtc.live.fleet import TruthMonitor
 
 
 def _train(odo_mm, eoa_mm):

@@ -1,6 +1,6 @@
 """The track-constrained UKF: a linear-KF oracle on a straight, NEES consistency, outlier gate, loop seam, late data.
 
-Streams are synthetic: the simulator's own sensor models (cbtc.sim_drivers) driven along a prescribed speed profile,
+Streams are synthetic: the simulator's own sensor models (cbtc.sim.drivers) driven along a prescribed speed profile,
 packed into reports the way the OnboardUnit packs them (10 Hz, newest IPS fix, tag reads with their odometer).
 """
 
@@ -14,13 +14,19 @@ from scipy.stats import chi2
 
 from cbtc.cli import main
 from cbtc.errors import ConfigError
-from cbtc.estimate import BoardClock
-from cbtc.ips_frame import track_to_ips
-from cbtc.layout import load_layout
-from cbtc.sim_drivers import SimEncoder, SimIps, SimRfid
-from cbtc.track_ukf import NoiseModel, TrackUkf, along_track_residual, initial_covariance, process_noise
-from cbtc.train_profile import TrainProfile
-from cbtc.ukf_estimator import UkfEstimator
+from cbtc.estimation.estimate import BoardClock
+from cbtc.estimation.track_ukf import (
+    NoiseModel,
+    TrackUkf,
+    along_track_residual,
+    initial_covariance,
+    process_noise,
+)
+from cbtc.estimation.ukf_estimator import UkfEstimator
+from cbtc.railway.ips_frame import track_to_ips
+from cbtc.railway.layout import load_layout
+from cbtc.railway.train_profile import TrainProfile
+from cbtc.sim.drivers import SimEncoder, SimIps, SimRfid
 
 BOARD_OFFSET_MS = 5_000_000     # the board's clock runs this far ahead of the controller's
 LINK_S = 0.0                    # report transit time: zero, so board stamps map exactly onto truth times
@@ -325,7 +331,7 @@ def test_measurement_older_than_the_history_is_dropped(loop):
 
 def _standing_reports(layout, s_m, fixes_xy, t0_ms=BOARD_OFFSET_MS, period_ms=125):
     """Reports of a train standing at `s_m` (odometer 0), one IPS fix each from `fixes_xy` (layout frame, m)."""
-    from cbtc.ips_frame import track_to_ips
+    from cbtc.railway.ips_frame import track_to_ips
 
     reports = []
     for i, (x_m, y_m) in enumerate(fixes_xy):

@@ -1,7 +1,7 @@
 """The wire protocol: authentication, validation with reasons, round trips (CPython; the unix-port run is in test_firmware_mpy)."""
 
-import hmac
 import hashlib
+import hmac
 import json
 
 import pytest

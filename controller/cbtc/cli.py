@@ -5,11 +5,11 @@ Adding a command is adding a module and one name to COMMANDS.
 """
 
 import argparse
-import logging
 import importlib
+import logging
 import sys
 
-from .errors import CbtcError
+from cbtc.errors import CbtcError
 
 COMMANDS = (
     "demo",

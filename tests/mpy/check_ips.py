@@ -8,6 +8,7 @@ Frames are built here with a table-driven CRC-16/Modbus, independent of the driv
 import struct
 
 import machine
+
 from drivers.ips import IpsReceiver, crc16_modbus
 
 

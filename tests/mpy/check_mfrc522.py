@@ -6,6 +6,7 @@ The chip is the register-level fake in tests/mpy/fake_mfrc522.py.
 """
 
 import machine
+
 from drivers.mfrc522 import Mfrc522, crc_a
 from fake_mfrc522 import FakeMfrc522
 

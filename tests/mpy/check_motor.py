@@ -5,6 +5,7 @@ tests/test_drivers.py calls each one directly and again inside `micropython -X h
 """
 
 import machine
+
 from drivers.motor import Motor
 
 

@@ -4,10 +4,10 @@
 (NTAG213/215 or MIFARE Ultralight sticker); `cbtc balise read HEX` decodes what a board reported.
 """
 
-from .. import balise
-from ..errors import CbtcError
-from ..layout import load_layout
-from .common import format_table, print_json
+from cbtc.commands.common import format_table, print_json
+from cbtc.errors import CbtcError
+from cbtc.railway import balise
+from cbtc.railway.layout import load_layout
 
 
 def register(sub):

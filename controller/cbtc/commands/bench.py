@@ -29,16 +29,21 @@ import time
 
 import numpy as np
 
-from ..broker_config import MosquittoProcess
-from ..errors import BusError, ConfigError
-from ..firmware_modules import obu, wire
-from ..layout import layout_from_dict, load_layout
-from ..live import LiveLoop
-from ..paho_bus import PahoBus
-from ..scenario import make_estimator_factory, make_policy, queue_scenario, train_key
-from ..virtual_train import VirtualTrain
-from ..zone_controller import TrainSetup, ZoneController
-from .common import print_json
+from cbtc.bus.broker_config import MosquittoProcess
+from cbtc.bus.paho_bus import PahoBus
+from cbtc.commands.common import print_json
+from cbtc.errors import BusError, ConfigError
+from cbtc.firmware_modules import obu, wire
+from cbtc.live.fleet import LiveLoop
+from cbtc.railway.layout import layout_from_dict, load_layout
+from cbtc.sim.simulation import (
+    make_estimator_factory,
+    make_policy,
+    queue_scenario,
+    train_key,
+)
+from cbtc.sim.virtual_train import VirtualTrain
+from cbtc.zone.controller import TrainSetup, ZoneController
 
 STRAIGHT_M = 0.128        # LEGO straight, 16 studs
 CURVES_M = 2 * math.pi * 0.32

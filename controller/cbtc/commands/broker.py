@@ -8,8 +8,8 @@ read only its own commands.
 
 import os
 
-from ..broker_config import load_credentials, write_config
-from ..live import parse_ids
+from cbtc.bus.broker_config import load_credentials, write_config
+from cbtc.live.fleet import parse_ids
 
 
 def register(sub):

@@ -6,8 +6,8 @@ Reports are JSON lines, one decoded report per line (fields as in docs/protocol.
 import csv
 import json
 
-from ..calibration import align_ips, counts_per_m, survey_tags, tags_yaml
-from ..errors import ConfigError
+from cbtc.board.calibration import align_ips, counts_per_m, survey_tags, tags_yaml
+from cbtc.errors import ConfigError
 
 
 def register(subparsers):

@@ -28,8 +28,8 @@ def run_scenario_and_report(config, title, args) -> int:
     """Run a scenario, draw `args.plot` if set, print the per-train table or `--json`; exit 1 on any collision."""
     import time
 
-    from ..plots import distance_time_png
-    from ..scenario import Simulation
+    from cbtc.experiments.plots import distance_time_png
+    from cbtc.sim.simulation import Simulation
 
     started = time.perf_counter()
     recorder = Simulation(config).run()

@@ -1,11 +1,17 @@
 """`cbtc compare`: moving block with Takagi control against the fixed-block baseline, on the paper's scenario."""
 
-from ..errors import ConfigError
-from ..headway import PAPER, block_sweep, reductions, run_paper_systems, steady_following
-from ..layout import load_layout
-from ..plots import distance_time_png
-from ..speed_code_channel import SpeedCodeChannel
-from .common import format_table, print_json
+from cbtc.authority.speed_code_channel import SpeedCodeChannel
+from cbtc.commands.common import format_table, print_json
+from cbtc.errors import ConfigError
+from cbtc.experiments.headway import (
+    PAPER,
+    block_sweep,
+    reductions,
+    run_paper_systems,
+    steady_following,
+)
+from cbtc.experiments.plots import distance_time_png
+from cbtc.railway.layout import load_layout
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
            ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("trains_per_hour", "trains/h"),

@@ -2,7 +2,7 @@
 
 import os
 
-from ..flash import flash
+from cbtc.board.flash import flash
 
 
 def register(subparsers):
@@ -23,7 +23,7 @@ def register(subparsers):
 
 
 def run(args):
-    from ..errors import ConfigError
+    from cbtc.errors import ConfigError
 
     if not args.key:
         raise ConfigError("--key is required (or set CBTC_TRAIN_KEY): 32 hex digits, the train's key")

@@ -2,12 +2,17 @@
 
 import time
 
-from ..errors import ConfigError
-from ..fusion_plot import fusion_png
-from ..fusion_table import METHODS, fusion_table, paper_ordering_holds, records_from_recorder
-from ..layout import load_layout
-from ..scenario import Simulation, paper_scenario
-from .common import format_table, print_json
+from cbtc.commands.common import format_table, print_json
+from cbtc.errors import ConfigError
+from cbtc.experiments.fusion_plot import fusion_png
+from cbtc.experiments.fusion_table import (
+    METHODS,
+    fusion_table,
+    paper_ordering_holds,
+    records_from_recorder,
+)
+from cbtc.railway.layout import load_layout
+from cbtc.sim.simulation import Simulation, paper_scenario
 
 
 def register(sub):

@@ -1,8 +1,8 @@
 """`cbtc guard`: the faulty-leader scenario with the onboard collision guard off and on, collisions per seed."""
 
-from ..errors import ConfigError
-from ..guard_scenario import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
-from .common import format_table, print_json
+from cbtc.commands.common import format_table, print_json
+from cbtc.errors import ConfigError
+from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
 
 
 def register(sub):

@@ -7,8 +7,8 @@ with the key of the train it is addressed to. Keep the file private.
 import json
 import os
 
-from ..errors import ConfigError
-from ..live import new_keys, parse_ids
+from cbtc.errors import ConfigError
+from cbtc.live.fleet import new_keys, parse_ids
 
 
 def register(sub):

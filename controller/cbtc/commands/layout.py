@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from ..ips_frame import ips_to_track
-from ..layout import layout_names, load_layout
-from .common import format_table, print_json
+from cbtc.commands.common import format_table, print_json
+from cbtc.railway.ips_frame import ips_to_track
+from cbtc.railway.layout import layout_names, load_layout
 
 
 def register(sub):

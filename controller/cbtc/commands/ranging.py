@@ -4,10 +4,10 @@ import time
 
 import numpy as np
 
-from .. import transponder as tp
-from ..errors import ConfigError
-from ..firmware_modules import telegram
-from .common import format_table, print_json
+from cbtc.commands.common import format_table, print_json
+from cbtc.errors import ConfigError
+from cbtc.firmware_modules import telegram
+from cbtc.ranging import transponder as tp
 
 CODE_BITS = (5, 7, 10)                 # chip lengths 31, 127, 1023
 SNRS_DB = (-20.0, -10.0, 0.0, 10.0)

@@ -1,9 +1,9 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
-from ..errors import ConfigError
-from ..layout import load_layout
-from ..scenario import queue_scenario
-from .common import run_scenario_and_report
+from cbtc.commands.common import run_scenario_and_report
+from cbtc.errors import ConfigError
+from cbtc.railway.layout import load_layout
+from cbtc.sim.simulation import queue_scenario
 
 
 def register(sub):

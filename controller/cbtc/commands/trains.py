@@ -9,13 +9,20 @@ as JSON.
 
 import numpy as np
 
-from ..layout import load_layout
-from ..firmware_modules import wire
-from ..live import (LiveLoop, TruthMonitor, add_connection_args, add_fleet_args, credentials, fleet_from_args,
-                    write_json)
-from ..broker_config import train_user
-from ..paho_bus import PahoBus
-from ..virtual_train import VirtualTrain
+from cbtc.bus.broker_config import train_user
+from cbtc.bus.paho_bus import PahoBus
+from cbtc.firmware_modules import wire
+from cbtc.live.fleet import (
+    LiveLoop,
+    TruthMonitor,
+    add_connection_args,
+    add_fleet_args,
+    credentials,
+    fleet_from_args,
+    write_json,
+)
+from cbtc.railway.layout import load_layout
+from cbtc.sim.virtual_train import VirtualTrain
 
 
 def register(sub):

@@ -8,13 +8,20 @@ braking distance), then, half a second later, the controller publishes its retai
 import secrets
 import sys
 
-from ..firmware_modules import wire
-from ..layout import load_layout
-from ..live import (LiveLoop, add_connection_args, add_fleet_args, credentials, fleet_from_args, fmt,
-                    write_json)
-from ..paho_bus import PahoBus
-from ..scenario import make_estimator_factory, make_policy
-from ..zone_controller import TrainSetup, ZoneController
+from cbtc.bus.paho_bus import PahoBus
+from cbtc.firmware_modules import wire
+from cbtc.live.fleet import (
+    LiveLoop,
+    add_connection_args,
+    add_fleet_args,
+    credentials,
+    fleet_from_args,
+    fmt,
+    write_json,
+)
+from cbtc.railway.layout import load_layout
+from cbtc.sim.simulation import make_estimator_factory, make_policy
+from cbtc.zone.controller import TrainSetup, ZoneController
 
 STOP_GRACE_S = 0.5
 

@@ -1,0 +1,135 @@
+"""The fixed-block baseline: block occupancy from track circuits, speed codes, and the same onboard braking curve.
+
+Made to be fair, not a straw man: the same trains, stops, safety margin and onboard supervision as moving block;
+only the authority differs. A train may run to the entry of the first occupied block ahead (its signal), less the
+safety margin; speed codes descend behind an occupied block as in seed 000 (the block just behind an occupied block gives the
+lowest code, restricted speed and a stop at its end; the next one back the approach code; further back line speed).
+Each code reaches the train as a Hamming-coded telegram through a noisy channel (cbtc.authority.speed_code_channel, seed 003);
+a rejected telegram gives the lowest code.
+Occupancy comes from track circuits, which detect any part of a train in a block: in simulation from the trains'
+true spans (`track_circuits`), otherwise from the estimates widened by k sigma.
+"""
+
+from cbtc.authority.rules import AuthorityParams
+from cbtc.authority.speed_code_channel import SpeedCodeChannel
+from cbtc.railway.layout import Block
+
+
+def equal_blocks(length_m: float, count: int):
+    """`count` equal blocks from s = 0 covering a loop of `length_m`."""
+    if count < 2:
+        raise ValueError(f"fixed blocks: need at least 2 blocks on a loop, got {count}")
+    size = length_m / count
+    return tuple(Block(f"B{i + 1}", i * size, (i + 1) * size) for i in range(count))
+
+
+class FixedBlockPolicy:
+    name = "fixed_block"
+    fast_reports = False   # the authority rests on track circuits, not on the train ahead's reports
+
+    def __init__(self, params: AuthorityParams = None, blocks=None, speed_codes=(0.5, 0.75, 1.0),
+                 track_circuits=None, code_ber=0.0, seed=0):
+        self.params = params or AuthorityParams()
+        self._blocks = blocks              # None: the layout's own; int: that many equal blocks; or a tuple of Block
+        # fraction of line speed by clear blocks ahead: [0] = stop at this block's end, [1] = approach, [2+] = line
+        self.speed_codes = tuple(speed_codes)
+        self.track_circuits = track_circuits  # callable() -> list of (train_id, head_s, tail_s) in truth, or None
+        # every code reaches the train as a Hamming-coded telegram through the rails (bit-error rate code_ber)
+        self.codes = SpeedCodeChannel(code_ber, seed)
+
+    def blocks(self, layout):
+        if self._blocks is None:
+            if not layout.blocks:
+                raise ValueError(f"layout {layout.name} defines no fixed blocks: give a block count")
+            return layout.blocks
+        if isinstance(self._blocks, int):
+            return equal_blocks(layout.length_m, self._blocks)
+        return tuple(self._blocks)
+
+    def _spans(self, zc):
+        """(train_id, head_s, tail_s) of every train as the track circuits see them."""
+        if self.track_circuits is not None:
+            return self.track_circuits()
+        spans = []
+        for st in zc.trains.values():
+            if st.report is None or not st.estimator.localized:
+                continue
+            est = st.estimator.estimate(st.report_t_s)
+            widen = self.params.k_sigma * est.sigma_s_m
+            spans.append((st.train_id, zc.layout.wrap(est.s_m + widen),
+                          zc.layout.wrap(est.s_m - st.setup.profile.length_m - widen)))
+        return spans
+
+    @staticmethod
+    def _index_at(blocks, layout, s_m):
+        for i, b in enumerate(blocks):
+            if layout.ahead_m(b.start_m, s_m) < layout.ahead_m(b.start_m, b.end_m):
+                return i
+        return len(blocks) - 1
+
+    def occupied(self, zc, exclude_train_id):
+        """Indices of blocks holding any part of another train."""
+        return self._taken(zc.layout, self.blocks(zc.layout), self._spans(zc), exclude_train_id)
+
+    def _taken(self, layout, blocks, spans, exclude_train_id):
+        taken = set()
+        for train_id, head_s, tail_s in spans:
+            if train_id == exclude_train_id:
+                continue
+            i = self._index_at(blocks, layout, tail_s)
+            j = self._index_at(blocks, layout, head_s)
+            taken.add(i)
+            while i != j:
+                i = (i + 1) % len(blocks)
+                taken.add(i)
+        return taken
+
+    def authority(self, zc, state, leader, now_s):
+        layout = zc.layout
+        profile = state.setup.profile
+        blocks = self.blocks(layout)
+        own = state.estimator.estimate(state.report_t_s)
+        spans = self._spans(zc)
+        clear_ahead, distance_m = self.clear_run(layout, blocks, spans, state.train_id, own.s_m)
+        code = min(clear_ahead, len(self.speed_codes) - 1)
+        i = self._index_at(blocks, layout, own.s_m)
+        received = self.codes.transmit(i, code)
+        if received < code:
+            # a rejected (or lower) code: the train may go only as far as that code allows
+            distance_m = min(distance_m, layout.ahead_m(own.s_m, blocks[(i + received) % len(blocks)].end_m))
+        distance_m -= self.params.margin_m + self.params.k_sigma * own.sigma_s_m
+        code_mps = self.speed_codes[min(received, len(self.speed_codes) - 1)] * profile.v_max_mps
+        return distance_m, code_mps, profile.accel_max_mps2, profile.beta_s_mps2
+
+    def clear_run(self, layout, blocks, spans, train_id, head_s):
+        """(clear blocks ahead, distance from the head to the first occupied block's entry) for a train at `head_s`.
+
+        A block is occupied if any part of another train is in it. If another train stands in the train's own block
+        ahead of it (only possible at start-up), the train must stay: (0, 0)."""
+        i = self._index_at(blocks, layout, head_s)
+        to_end_m = layout.ahead_m(head_s, blocks[i].end_m)
+        for other, _head, tail in spans:
+            if other != train_id and layout.ahead_m(head_s, tail) < to_end_m:
+                return 0, 0.0
+        taken = self._taken(layout, blocks, spans, train_id)
+        clear, j = 0, (i + 1) % len(blocks)
+        while j not in taken and j != i:
+            clear += 1
+            j = (j + 1) % len(blocks)
+        if j == i:
+            return len(blocks), layout.length_m  # alone on the loop
+        return clear, layout.ahead_m(head_s, blocks[j].start_m)
+
+    def protected_m(self, layout, train_id, spans):
+        """True distance (m) from `train_id`'s head to the entry of the first truly occupied block ahead (or to the
+        tail of a train in its own block), less S_M; negative = the protected zone is entered."""
+        head = next(h for t, h, _ in spans if t == train_id)
+        blocks = self.blocks(layout)
+        i = self._index_at(blocks, layout, head)
+        to_end_m = layout.ahead_m(head, blocks[i].end_m)
+        ahead = [layout.ahead_m(head, tail) for t, _h, tail in spans if t != train_id]
+        in_block = [d for d in ahead if d < to_end_m]
+        if in_block:
+            return min(in_block) - self.params.margin_m
+        clear, distance_m = self.clear_run(layout, blocks, spans, train_id, head)
+        return distance_m - self.params.margin_m

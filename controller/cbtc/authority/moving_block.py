@@ -1,0 +1,117 @@
+"""The moving-block authority policy: how far each train may go, and how it follows (Takagi control).
+
+Authority: the train ahead's tail as last estimated (not extrapolated: brick wall), less S_M and k sigma of both
+estimates, less a rollback allowance that grows with the age of the leader's data (stale data shrinks the
+authority: cbtc.authority). Control on top of it (paper eqs. 24-26, cbtc.authority.control_laws):
+- synchronisation: once the usable gap has shrunk to the braking distance of the follower, its deceleration is
+  commanded by eq. 24 from both speeds, which holds the gap at S_min(v_B) as both move;
+- departure: when a train stands at minimum distance behind a standing train, the pair departs together with
+  alpha_A = k beta_s and alpha_B = beta_s(-1 + sqrt(1 + 4k))/2 (eqs. 25-26), so the follower stays at S_min(v_B).
+The onboard braking curve to the end of authority stays the safety net under both.
+"""
+
+from cbtc.authority.control_laws import (
+    departure_accelerations_mps2,
+    departure_k_for,
+    sync_deceleration_mps2,
+)
+from cbtc.authority.rules import (
+    AuthorityParams,
+    combined_sigma_m,
+    minimum_gap_m,
+    moving_block_distance_m,
+)
+from cbtc.firmware_modules import obu
+
+_STANDING_MPS = 0.02
+_STOP_WINDOW_M = obu.DEFAULTS["stop_window_mm"] / 1000.0   # the onboard service curve ends this short of the limit
+
+
+class MovingBlockPolicy:
+    name = "moving_block"
+    fast_reports = True   # the authority rests on the train ahead's reports: ask it for fast ones when followed
+
+    def __init__(self, params: AuthorityParams = None, sync_tolerance_m: float = 0.01, takagi: bool = True):
+        self.params = params or AuthorityParams()
+        self.sync_tolerance_m = sync_tolerance_m
+        self.takagi = takagi
+        self.modes = {}       # train_id -> 'free' | 'sync' | 'departure', for supervision and tests
+
+    def protected_m(self, layout, train_id, spans):
+        """True distance (m) from `train_id`'s head to the point its authority protects: the true tail of the train
+        ahead less S_M. `spans` lists (train_id, head_s, tail_s) in truth. Negative = the protected zone is entered."""
+        head = next(h for t, h, _ in spans if t == train_id)
+        others = [layout.ahead_m(head, tail) for t, _, tail in spans if t != train_id]
+        if not others:
+            return float("inf")
+        return min(others) - self.params.margin_m
+
+    def usable_gap(self, zc, state, leader, now_s):
+        """(distance_m, leader_v_mps) the follower may still travel, as the authority sees it."""
+        layout = zc.layout
+        profile = state.setup.profile
+        own = state.estimator.estimate(state.report_t_s)
+        if leader is None:
+            # alone: its own tail is the train ahead on a loop; the end of the track on an open line
+            gap_m = layout.length_m - profile.length_m if layout.closed else layout.length_m - own.s_m
+            state.leader_data_t_s, state.sigma_m = None, own.sigma_s_m
+            return moving_block_distance_m(gap_m, own.sigma_s_m, 0.0, self.params), None
+        ahead = leader.estimator.estimate(leader.report_t_s)
+        tail_s = layout.wrap(ahead.s_m - leader.setup.profile.length_m)
+        gap_m = layout.ahead_m(own.s_m, tail_s)
+        if layout.closed and gap_m > layout.length_m - leader.setup.profile.length_m:
+            gap_m -= layout.length_m  # the estimates overlap: negative gap, no authority
+        # the follower's own ranging to the leader, when it has one, caps the gap and checks the picture
+        gap_m = zc.checked_gap_m(state, gap_m, combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m), now_s)
+        # the leader where it was last seen (brick wall: it may have stopped dead since, so its position is not
+        # extrapolated); the older that is, the more it may have rolled back: stale data shrinks the authority (and
+        # the zone controller stops extending it at all after max_leader_age_s)
+        age_s = now_s - leader.report_t_s
+        state.leader_data_t_s = leader.report_t_s
+        state.sigma_m = combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m)
+        return moving_block_distance_m(gap_m, own.sigma_s_m, ahead.sigma_s_m, self.params, age_s), ahead.v_mps
+
+    def authority(self, zc, state, leader, now_s):
+        """(distance_m, v_cap_mps, acc_mps2, dec_mps2) for `state`'s train behind `leader` (None: alone)."""
+        profile = state.setup.profile
+        beta_s = profile.beta_s_mps2
+        own = state.estimator.estimate(state.report_t_s)
+        distance_m, v_leader = self.usable_gap(zc, state, leader, now_s)
+        # The braking curve to the end of authority is supervised on board, against the exact odometer, with the
+        # reaction time counted; the end of authority is a fixed point of that odometer, so communication latency
+        # and the follower's data age do not move it, and the command expires `ttl_s` after the report it answers.
+        # So the controller commands the line speed and the end of authority; the board rides the curve.
+        v_cap = profile.v_max_mps
+        acc, dec = profile.accel_max_mps2, beta_s
+        mode = "free"
+        if self.takagi and leader is not None:
+            v_b = max(0.0, own.v_mps)
+            if v_b > _STANDING_MPS and distance_m <= minimum_gap_m(v_b, beta_s, 0.0) + _STOP_WINDOW_M \
+                    + self.sync_tolerance_m:
+                mode = "sync"
+                beta_b = sync_deceleration_mps2(v_b, max(0.0, v_leader), beta_s)
+                horizon_s = zc.cycle_s + self.params.latency_s
+                if beta_b > 0:
+                    v_cap = min(v_cap, max(0.0, v_b - beta_b * horizon_s))
+                    dec = min(beta_s, max(0.05 * beta_s, beta_b))
+            elif v_b <= _STANDING_MPS and abs(v_leader) <= _STANDING_MPS and distance_m <= self.sync_tolerance_m:
+                mode = "departure"
+        if self.takagi:
+            acc = self._departure_acc(zc, state, leader, mode, acc)
+        self.modes[state.train_id] = mode
+        return distance_m, v_cap, acc, dec
+
+    def _departure_acc(self, zc, state, leader, mode, acc):
+        """Eqs. 25-26: the follower of a departing pair accelerates at alpha_B, its leader at alpha_A = k beta_s."""
+        profile = state.setup.profile
+        if mode == "departure" and leader is not None:
+            k = departure_k_for(leader.setup.profile.accel_max_mps2, profile.accel_max_mps2, profile.beta_s_mps2)
+            return departure_accelerations_mps2(k, profile.beta_s_mps2)[1]
+        # am I the leader of a pair standing at minimum distance?
+        for other in zc.trains.values():
+            if other is not state and self.modes.get(other.train_id) == "departure":
+                own = state.estimator.estimate(state.report_t_s)
+                if own is not None and own.v_mps <= 0.5 * profile.v_max_mps:
+                    k = departure_k_for(profile.accel_max_mps2, other.setup.profile.accel_max_mps2, profile.beta_s_mps2)
+                    return departure_accelerations_mps2(k, profile.beta_s_mps2)[0]
+        return acc

@@ -1,0 +1,1 @@
+"""Real boards: precompiling and flashing the firmware, calibrating a board's sensors."""

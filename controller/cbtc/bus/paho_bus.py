@@ -1,0 +1,256 @@
+"""The bus over a real MQTT broker, through paho-mqtt (v2 callback API): the same interface as the mock broker.
+
+This is the one place that owns the connection policy: paho's network thread connects, and after a loss reconnects
+with exponential backoff (`reconnect_delay_set`); the connect handler sets TCP_NODELAY on the socket (without it,
+Nagle's algorithm adds 40-90 ms to a round trip), subscribes again to every filter (clean sessions: the broker
+forgets them) and publishes the retained `online` status; the last will publishes `offline` if the link dies.
+
+QoS per topic (`topic_qos`): status topics QoS 1 and retained, so "who is alive" reaches a late or reconnecting
+subscriber exactly as last set; reports and commands QoS 0, because each is superseded 100 ms later and the
+onboard command watchdog, not the broker, makes a lost command safe (a redelivered old command would be stale
+anyway). See docs/protocol.md and docs/mqtt.md.
+
+Threads: paho calls back on its own thread. With an `Inbox`, incoming messages and (re)connect notices are queued
+there and run by whoever drains it (the scheduler thread, see cbtc.live), so controller and train code never runs
+concurrently with itself. Without an inbox, callbacks run on paho's thread.
+"""
+
+import collections
+import logging
+import socket
+import threading
+import urllib.parse
+
+import paho.mqtt.client as mqtt
+
+from cbtc.bus.client import BusClient, topic_matches, validate_filter, validate_topic
+from cbtc.errors import BusError, ConfigError
+
+log = logging.getLogger("cbtc.paho")
+
+ONLINE = b"online"
+OFFLINE = b"offline"
+DEFAULT_PORT = 1883
+
+
+def topic_qos(topic: str) -> int:
+    """The QoS a topic is published and subscribed with: 1 for `.../status`, 0 for reports and commands."""
+    return 1 if topic.endswith("/status") else 0
+
+
+def parse_broker_url(url: str):
+    """`mqtt://[user:password@]host[:port]` -> (host, port, username or None, password or None)."""
+    parts = urllib.parse.urlsplit(url if "://" in url else "mqtt://" + url)
+    if parts.scheme != "mqtt":
+        raise ConfigError(f"broker URL {url!r}: scheme {parts.scheme!r} is not supported; use mqtt://HOST:PORT")
+    try:
+        port = parts.port or DEFAULT_PORT
+    except ValueError:
+        raise ConfigError(f"broker URL {url!r}: the port must be a number in 1-65535") from None
+    if not parts.hostname:
+        raise ConfigError(f"broker URL {url!r} names no host; use mqtt://HOST:PORT, e.g. mqtt://127.0.0.1:1883")
+    user = urllib.parse.unquote(parts.username) if parts.username else None
+    password = urllib.parse.unquote(parts.password) if parts.password else None
+    return parts.hostname, port, user, password
+
+
+class Inbox:
+    """A thread-safe queue of calls: paho's thread `put`s, the owner's thread `drain`s (runs them in order).
+
+    `notify`: called (on the putting thread) after each `put`, e.g. to wake the owner."""
+
+    def __init__(self, notify=None):
+        self._calls = collections.deque()
+        self._notify = notify
+        self.errors = 0
+        self.last_error = ""
+
+    def put(self, fn, *args) -> None:
+        self._calls.append((fn, args))
+        if self._notify is not None:
+            self._notify()
+
+    def __len__(self):
+        return len(self._calls)
+
+    def drain(self, _now_s=None) -> int:
+        """Run every queued call (a failing one is logged and counted, never raised); returns how many ran."""
+        ran = 0
+        while self._calls:
+            fn, args = self._calls.popleft()
+            ran += 1
+            try:
+                fn(*args)
+            except Exception as exc:  # one bad handler must not stop the controller or the trains
+                self.errors += 1
+                self.last_error = f"{getattr(fn, '__qualname__', fn)}: {type(exc).__name__}: {exc}"
+                log.exception("callback failed")
+        return ran
+
+
+class PahoBus(BusClient):
+    """One connection to an MQTT broker; implements `cbtc.bus.client.BusClient`.
+
+    `status_topic`: the client's retained status topic (`online` on every connect, `offline` as last will and on a
+    clean `disconnect`). `inbox`: where callbacks are queued (None: run on paho's thread)."""
+
+    def __init__(self, url: str, client_id: str, status_topic: str = None, username: str = None,
+                 password: str = None, inbox: Inbox = None, keepalive_s: int = 5,
+                 reconnect_min_s: float = 0.2, reconnect_max_s: float = 2.0):
+        host, port, url_user, url_password = parse_broker_url(url)
+        self.host, self.port = host, port
+        self.client_id = client_id
+        self.status_topic = status_topic
+        self.on_connect = None
+        self.connects = 0
+        self.losses = 0
+        self.dropped = 0            # publishes while not connected (QoS 0: lost, as on the mock broker)
+        self.refusal = ""           # the broker's reason when it refused the last CONNECT
+        self._inbox = inbox
+        self._subs = {}             # filter -> callback
+        self._lock = threading.Lock()
+        self._connected = threading.Event()
+        self._answered = threading.Event()   # the broker answered a CONNECT (accepted or refused)
+        self._client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=True)
+        username = username if username is not None else url_user
+        password = password if password is not None else url_password
+        if username is not None:
+            self._client.username_pw_set(username, password)
+        if status_topic is not None:
+            validate_topic(status_topic)
+            self._client.will_set(status_topic, OFFLINE, qos=topic_qos(status_topic), retain=True)
+        self._client.reconnect_delay_set(reconnect_min_s, reconnect_max_s)
+        self._client.on_connect = self._on_connect
+        self._client.on_disconnect = self._on_disconnect
+        self._client.on_message = self._on_message
+        self._keepalive_s = keepalive_s
+        self._started = False
+
+    # --- lifecycle ---------------------------------------------------------------------------------------------
+
+    def start(self, timeout_s: float = 10.0) -> "PahoBus":
+        """Connect (paho's thread keeps reconnecting from now on) and wait for the first CONNACK.
+
+        Raises BusError if the broker refuses us (credentials, ACL) or does not answer within `timeout_s`."""
+        self._client.connect_async(self.host, self.port, keepalive=self._keepalive_s)
+        self._client.loop_start()
+        self._started = True
+        if not self._answered.wait(timeout_s):
+            self._stop_loop()
+            raise BusError(f"{self.client_id}: no MQTT broker answered at {self.host}:{self.port} within "
+                           f"{timeout_s:g} s; start one (e.g. `cbtc broker config` + mosquitto -c) or fix --broker")
+        if not self._connected.is_set():
+            self._stop_loop()
+            raise BusError(f"{self.client_id}: the broker at {self.host}:{self.port} refused the connection "
+                           f"({self.refusal}); check --username/--password (or CBTC_MQTT_USERNAME/PASSWORD)")
+        return self
+
+    def wait_connected(self, timeout_s: float) -> bool:
+        return self._connected.wait(timeout_s)
+
+    @property
+    def connected(self) -> bool:
+        return self._connected.is_set()
+
+    def disconnect(self) -> None:
+        """Clean end: publish the retained `offline` status (if any), then DISCONNECT (the will is not sent)."""
+        if self.status_topic is not None and self.connected:
+            info = self._client.publish(self.status_topic, OFFLINE, qos=topic_qos(self.status_topic), retain=True)
+            try:
+                info.wait_for_publish(timeout=1.0)
+            except (RuntimeError, ValueError):
+                pass  # lost the connection meanwhile: the will says offline
+        self._client.disconnect()
+        self._stop_loop()
+        self._connected.clear()
+
+    def _stop_loop(self):
+        if self._started:
+            self._client.loop_stop()
+            self._started = False
+
+    # --- BusClient ---------------------------------------------------------------------------------------------
+
+    def publish(self, topic, payload, retain=False, qos=0):
+        """Send `payload`; QoS is the higher of `qos` and `topic_qos(topic)`. Dropped (counted) while disconnected."""
+        validate_topic(topic)
+        if not isinstance(payload, (bytes, bytearray)):
+            raise TypeError(f"payload on {topic} must be bytes, got {type(payload).__name__}")
+        if not self.connected:
+            self.dropped += 1
+            return
+        info = self._client.publish(topic, bytes(payload), qos=max(qos, topic_qos(topic)), retain=retain)
+        if info.rc != mqtt.MQTT_ERR_SUCCESS:
+            self.dropped += 1
+
+    def subscribe(self, topic_filter, callback):
+        """Route messages matching `topic_filter` to `callback(topic, payload)`; kept across reconnects."""
+        validate_filter(topic_filter)
+        with self._lock:
+            self._subs[topic_filter] = callback
+        if self.connected:
+            self._client.subscribe(topic_filter, qos=topic_qos(topic_filter))
+
+    def unsubscribe(self, topic_filter):
+        with self._lock:
+            self._subs.pop(topic_filter, None)
+        if self.connected:
+            self._client.unsubscribe(topic_filter)
+
+    # --- paho's thread -------------------------------------------------------------------------------------------
+
+    def _on_connect(self, client, _userdata, _flags, reason_code, _properties):
+        if reason_code.is_failure:
+            self.refusal = str(reason_code)
+            log.warning("%s: broker %s:%d refused the connection: %s", self.client_id, self.host, self.port,
+                        reason_code)
+            self._answered.set()
+            return
+        sock = client.socket()
+        if sock is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        with self._lock:
+            filters = list(self._subs)
+        for topic_filter in filters:
+            client.subscribe(topic_filter, qos=topic_qos(topic_filter))
+        if self.status_topic is not None:
+            client.publish(self.status_topic, ONLINE, qos=topic_qos(self.status_topic), retain=True)
+        self.connects += 1
+        self.refusal = ""
+        self._connected.set()
+        self._answered.set()
+        if self.connects > 1:
+            log.warning("%s: reconnected to %s:%d", self.client_id, self.host, self.port)
+        if self.on_connect is not None:
+            self._dispatch(self._run_on_connect)
+
+    def _run_on_connect(self):
+        if self.on_connect is not None:
+            self.on_connect(self)
+
+    def _on_disconnect(self, _client, _userdata, _flags, reason_code, _properties):
+        if self._connected.is_set():
+            self._connected.clear()
+            if reason_code.is_failure:
+                self.losses += 1
+                log.warning("%s: lost the broker (%s); reconnecting", self.client_id, reason_code)
+
+    def _on_message(self, _client, _userdata, message):
+        topic = message.topic
+        payload = bytes(message.payload)
+        with self._lock:
+            callbacks = []
+            for topic_filter, callback in self._subs.items():
+                if topic_matches(topic_filter, topic) and callback not in callbacks:
+                    callbacks.append(callback)
+        for callback in callbacks:
+            self._dispatch(callback, topic, payload)
+
+    def _dispatch(self, fn, *args):
+        if self._inbox is not None:
+            self._inbox.put(fn, *args)
+            return
+        try:
+            fn(*args)
+        except Exception:  # a subscriber's bug must not kill paho's network thread
+            log.exception("%s: callback failed", self.client_id)

@@ -1,0 +1,227 @@
+"""The track-constrained unscented Kalman filter of one train: the state lives along the track.
+
+State `x = [s_m, v_mps, d_m, k]`:
+
+- `s_m`: head position along the track (m), wrapped onto a loop after every step;
+- `v_mps`: speed along the track (m/s);
+- `d_m`: the encoder odometer (m of encoder travel), so the encoder is a plain distance measurement;
+- `k`: encoder scale error, the encoder counts `(1 + k)` times the distance travelled (dimensionless). Optional:
+  without it the state is `[s_m, v_mps, d_m]` and the scale is taken as exact.
+
+Motion (`fx`): constant speed under white acceleration noise; the odometer integrates `(1 + k) v` plus wheel slip.
+Measurements: the odometer `d` (linear), an IPS fix `(x, y) = layout.xy(s)` (the nonlinearity on the curves, the
+reason for the UKF), and an RFID balise read `[tag s, d]` at the read. A loop's seam is handled by the residual
+function of the along-track coordinate; outliers by a Mahalanobis gate on every IPS fix and tag read.
+
+Filterpy's grain: module-level `fx(x, dt_s)` and `hx_*`, the real `dt_s` at every predict, explicit `Q` and `R`.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+from scipy.stats import chi2
+
+from cbtc.railway.geometry import circular_offset_m
+
+# scaled unscented transform: sigma points at +-2 sigma, all mean weights positive (lambda = 0)
+_ALPHA = 1.0
+_BETA = 2.0
+_KAPPA = 0.0
+
+S, V, D, K = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Process and measurement noise of one train's filter (SI units, variances in m^2 unless said)."""
+
+    accel_psd_m2ps3: float        # power spectral density of the white acceleration (m^2/s^3)
+    slip_var_m2_per_m: float      # odometer slip variance gained per metre travelled
+    scale_var_per_m: float        # random walk of the scale error k per metre travelled (1/m)
+    odo_var_m2: float             # odometer quantisation (one count, one mm)
+    ips_var_m2: float             # IPS noise per axis
+    tag_var_m2: float             # tag placement and reader-field spread, before the polling spread
+    rfid_range_m: float           # the reader reads a tag this far before its head reaches it
+    rfid_poll_s: float            # the reader is polled once per this period: reads land up to v * poll late
+    gate_prob: float              # a measurement outside this probability mass of its innovation is rejected
+
+
+def fx(x, dt_s):
+    """State after `dt_s` seconds at constant speed; the odometer advances by (1 + k) v dt."""
+    out = np.array(x, dtype=float)
+    k = x[K] if len(x) > K else 0.0
+    out[S] = x[S] + x[V] * dt_s
+    out[D] = x[D] + (1.0 + k) * x[V] * dt_s
+    return out
+
+
+def process_noise(n, dt_s, v_mps, k, noise: NoiseModel):
+    """Q (n x n) of one predict over `dt_s` seconds at speed `v_mps`: white acceleration drives s, v and d alike;
+    slip enters the odometer only and the scale error random-walks, both in proportion to the distance travelled."""
+    dt = abs(dt_s)
+    q = noise.accel_psd_m2ps3
+    c = 1.0 + k
+    travel_m = abs(v_mps) * dt
+    Q = np.zeros((n, n))
+    Q[S, S] = q * dt ** 3 / 3.0
+    Q[S, V] = Q[V, S] = q * dt ** 2 / 2.0
+    Q[V, V] = q * dt
+    Q[S, D] = Q[D, S] = c * q * dt ** 3 / 3.0
+    Q[V, D] = Q[D, V] = c * q * dt ** 2 / 2.0
+    Q[D, D] = c * c * q * dt ** 3 / 3.0 + noise.slip_var_m2_per_m * travel_m
+    if n > K:
+        Q[K, K] = noise.scale_var_per_m * travel_m
+    return Q
+
+
+def hx_odometer(x):
+    """The encoder odometer (m)."""
+    return np.array([x[D]])
+
+
+def hx_tag(x, rfid_offset_m):
+    """What a tag read says: [tag position, odometer]. The head is `rfid_offset_m` short of the tag at the read."""
+    return np.array([x[S] + rfid_offset_m, x[D]])
+
+
+def hx_ips(x, layout):
+    """The layout-frame (x, y) in metres of the head at `x[S]`."""
+    px, py = layout.xy(x[S])
+    return np.array([float(px), float(py)])
+
+
+def hx_range(x, layout, radio_x_m, radio_y_m):
+    """The distance (m) from the head at `x[S]` to a wayside radio at (radio_x_m, radio_y_m)."""
+    px, py = layout.xy(x[S])
+    return np.array([math.hypot(float(px) - radio_x_m, float(py) - radio_y_m)])
+
+
+def along_track_residual(layout):
+    """`a - b` for vectors whose first entry is an along-track position: on a loop it is the short way round the seam."""
+    if not layout.closed:
+        return np.subtract
+    length_m = layout.length_m
+
+    def residual(a, b):
+        y = np.subtract(a, b)
+        y[0] = circular_offset_m(y[0], 0.0, length_m)
+        return y
+
+    return residual
+
+
+def initial_covariance(n, sigma_s_m, sigma_v_mps, sigma_d_m, sigma_k):
+    """Diagonal P0 for a state of dimension `n` (3 without the scale error, 4 with it)."""
+    return np.diag([sigma_s_m ** 2, sigma_v_mps ** 2, sigma_d_m ** 2, sigma_k ** 2][:n])
+
+
+class TrackUkf:
+    """One train's filter over a layout: `predict_to(t_s)`, then an `update_*` per measurement.
+
+    Wraps filterpy's UnscentedKalmanFilter with MerweScaledSigmaPoints. Time `t_s` is whatever clock the caller
+    uses (seconds); nothing here reads a clock. `snapshot()` / `restore()` let the caller re-run measurements that
+    arrived out of order.
+    """
+
+    def __init__(self, layout, noise: NoiseModel, x0, P0, t_s: float):
+        self.layout = layout
+        self.noise = noise
+        n = len(x0)
+        points = MerweScaledSigmaPoints(n, alpha=_ALPHA, beta=_BETA, kappa=_KAPPA)
+        self.ukf = UnscentedKalmanFilter(dim_x=n, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx, points=points)
+        self.ukf.x = np.array(x0, dtype=float)
+        self.ukf.P = np.array(P0, dtype=float)
+        self.t_s = float(t_s)
+        self._along = along_track_residual(layout)
+        self._gate1 = math.sqrt(chi2.ppf(noise.gate_prob, 1))
+        self._gate2 = math.sqrt(chi2.ppf(noise.gate_prob, 2))
+
+    @property
+    def x(self):
+        return self.ukf.x
+
+    @property
+    def P(self):
+        return self.ukf.P
+
+    @property
+    def n(self):
+        return len(self.ukf.x)
+
+    def snapshot(self):
+        return (self.t_s, self.ukf.x.copy(), self.ukf.P.copy())
+
+    def restore(self, snap):
+        self.t_s, x, P = snap
+        self.ukf.x = x.copy()
+        self.ukf.P = P.copy()
+
+    def predict_to(self, t_s: float) -> None:
+        """Advance to time `t_s` (s) with the real dt; a later call with the same time is a no-op in mean and P."""
+        dt_s = t_s - self.t_s
+        x = self.ukf.x
+        k = x[K] if self.n > K else 0.0
+        self.ukf.Q = process_noise(self.n, dt_s, x[V], k, self.noise)
+        self.ukf.predict(dt=dt_s)
+        self.t_s = float(t_s)
+        self._settle()
+
+    def update_odometer(self, d_m: float) -> bool:
+        """Fold in the encoder odometer (m) at the current time. Never gated: the encoder is the backbone."""
+        self.ukf.residual_z = np.subtract
+        self.ukf.update(np.array([d_m]), R=np.array([[self.noise.odo_var_m2]]), hx=hx_odometer)
+        self._settle()
+        return True
+
+    def update_ips(self, x_m: float, y_m: float) -> bool:
+        """Fold in an IPS fix in the layout frame (m) unless it fails the gate; True when used."""
+        self.ukf.residual_z = np.subtract
+        R = np.eye(2) * self.noise.ips_var_m2
+        return self._gated_update(np.array([x_m, y_m]), R, self._gate2, hx_ips, layout=self.layout)
+
+    def update_tag(self, tag_s_m: float, d_m: float) -> bool:
+        """Fold in a balise read: the tag at `tag_s_m` was read when the odometer showed `d_m`; True when used.
+
+        The reader is polled once per `rfid_poll_s`: the read lands between `rfid_range_m` before the tag and
+        `v * rfid_poll_s` later, uniformly, so the expected offset and its variance depend on the speed.
+        """
+        n = self.noise
+        late_m = abs(self.ukf.x[V]) * n.rfid_poll_s
+        offset_m = n.rfid_range_m - 0.5 * late_m
+        R = np.diag([n.tag_var_m2 + late_m ** 2 / 12.0, n.odo_var_m2])
+        self.ukf.residual_z = self._along
+        return self._gated_update(np.array([tag_s_m, d_m]), R, self._gate2, hx_tag, rfid_offset_m=offset_m)
+
+    def update_range(self, radio_x_m: float, radio_y_m: float, range_m: float, sigma_m: float) -> bool:
+        """Fold in a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at a surveyed position; True when used."""
+        self.ukf.residual_z = np.subtract
+        return self._gated_update(np.array([range_m]), np.array([[sigma_m ** 2]]), self._gate1, hx_range,
+                                  layout=self.layout, radio_x_m=radio_x_m, radio_y_m=radio_y_m)
+
+    def relocate(self, s_m: float, sigma_s_m: float) -> None:
+        """Start the position over at `s_m` (m) with 1-sigma `sigma_s_m`, keeping speed, odometer and scale."""
+        P = self.ukf.P
+        P[S, :] = 0.0
+        P[:, S] = 0.0
+        P[S, S] = sigma_s_m ** 2
+        self.ukf.x[S] = s_m
+        self._settle()
+
+    def _gated_update(self, z, R, gate, hx, **hx_args) -> bool:
+        x_before, P_before = self.ukf.x.copy(), self.ukf.P.copy()
+        self.ukf.update(z, R=R, hx=hx, **hx_args)
+        if self.ukf.mahalanobis > gate:
+            self.ukf.x, self.ukf.P = x_before, P_before
+            return False
+        self._settle()
+        return True
+
+    def _settle(self):
+        """Keep P symmetric, s on the layout, and the sigma points in step with (x, P) for a following update."""
+        ukf = self.ukf
+        ukf.P = 0.5 * (ukf.P + ukf.P.T)
+        if self.layout.closed:
+            ukf.x[S] = self.layout.wrap(ukf.x[S])
+        ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)

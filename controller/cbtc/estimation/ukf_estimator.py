@@ -1,0 +1,360 @@
+"""The default position estimator: a track-constrained UKF per train on encoder, IPS and RFID (cbtc.estimation.track_ukf).
+
+Same interface as cbtc.estimation.odometry_estimator.OdometryEstimator: `on_report(report, board_clock)` and
+`estimate(now_s) -> Estimate | None`.
+
+Every measurement is stamped with its own time on the board's clock: the encoder at the report's `t_ms`, an IPS fix at
+its receive time minus the IPS latency (when the beacon sampled it), a tag at its read time. The filter runs on board
+time, so a better clock offset learnt later never reorders anything. Measurements are kept for `history_s` seconds in
+time order with the filter state after each; one that lands before newer ones (a late IPS fix, a report overtaken
+in transit) is inserted at its time and the newer ones are re-run from the state just before it. Dropouts need
+nothing: the next measurement predicts over the gap. A train is placed by its first balise read, or by the IPS
+only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.estimation.fix_consensus). A run of
+`relocate_after` IPS fixes that all fail the gate means the train is not where the filter thinks (lifted and put
+back, a long slip): the position restarts where the fixes of that run agree.
+"""
+
+import bisect
+import math
+from dataclasses import dataclass, fields
+
+from cbtc.errors import ConfigError
+from cbtc.estimation.estimate import Estimate
+from cbtc.estimation.fix_consensus import agreeing_anchor
+from cbtc.estimation.track_ukf import (
+    D,
+    K,
+    NoiseModel,
+    S,
+    TrackUkf,
+    V,
+    initial_covariance,
+)
+from cbtc.railway.balise import BaliseReader
+from cbtc.railway.ips_frame import ips_to_track
+
+
+@dataclass(frozen=True)
+class UkfParams:
+    """Filter settings that are not sensor properties (those come from the TrainProfile); see docs/fusion.md."""
+
+    accel_psd_m2ps3: float = 0.02     # white-acceleration PSD: ~0.3 m/s^2 changes of acceleration per motor time constant
+    scale_sigma: float = 0.03         # prior 1-sigma of the encoder scale error; 0 leaves it out of the state
+    scale_walk_per_sqrt_m: float = 1e-3  # scale error drift per sqrt(metre) travelled (wear, dirt, load)
+    slip_length_m: float = 0.02       # distance over which wheel slip is correlated (a wheel's roll per loop tick)
+    tag_sigma_m: float = 0.002        # tag placement and reader-field spread (1-sigma)
+    rfid_poll_s: float = 0.02         # the onboard loop polls the reader once per period
+    gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
+    relocate_after: int = 8           # this many consecutive gated IPS fixes restart the position
+    locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
+    history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or value != value or value < 0:
+                raise ConfigError(f"UKF estimator: {f.name} must be a number >= 0, got {value!r}")
+        if not 0.5 < self.gate_prob < 1.0:
+            raise ConfigError(f"UKF estimator: gate_prob is a probability in (0.5, 1), got {self.gate_prob}")
+        if self.relocate_after < 1 or self.history_s <= 0 or not 1 <= self.locate_fixes <= self.relocate_after:
+            raise ConfigError("UKF estimator: relocate_after must be >= 1, history_s > 0 and locate_fixes between 1 "
+                              "and relocate_after")
+
+
+def make_params(params: dict) -> UkfParams:
+    known = {f.name for f in fields(UkfParams)}
+    unknown = set(params) - known
+    if unknown:
+        raise ConfigError(f"UKF estimator: unknown settings {sorted(unknown)}; known: {sorted(known)}")
+    return UkfParams(**params)
+
+
+def noise_model(profile, params: UkfParams) -> NoiseModel:
+    """The filter's noise from the train's sensor profile and the filter settings."""
+    count_m = 1.0 / profile.counts_per_m
+    return NoiseModel(
+        accel_psd_m2ps3=params.accel_psd_m2ps3,
+        slip_var_m2_per_m=profile.encoder_slip_sigma ** 2 * params.slip_length_m,
+        scale_var_per_m=params.scale_walk_per_sqrt_m ** 2,
+        odo_var_m2=(count_m ** 2 + 0.001 ** 2) / 12.0,   # one count, then integer millimetres on the wire
+        ips_var_m2=profile.ips_sigma_m ** 2,
+        tag_var_m2=params.tag_sigma_m ** 2,
+        rfid_range_m=profile.rfid_range_m,
+        rfid_poll_s=params.rfid_poll_s,
+        gate_prob=params.gate_prob,
+    )
+
+
+_KIND_RANK = {"odo": 0, "tag": 1, "ips": 2, "range": 3}
+
+
+class _Event:
+    """One measurement at board time `t_s`. Events sort by time, then kind and value, never by arrival, so the same
+    measurements give the same filter whatever order they came in."""
+
+    __slots__ = ("t_s", "kind", "data", "sort_key")
+
+    def __init__(self, t_s, kind, data):
+        self.t_s = t_s
+        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m);
+        #                       "range": (radio_x_m, radio_y_m, range_m, sigma_m)
+        self.data = data
+        self.sort_key = (t_s, _KIND_RANK[kind], data)
+
+
+class _State:
+    """The filter after an event, with the counters that depend on which measurements were used."""
+
+    __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations")
+
+    def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0):
+        self.snap = snap
+        self.ips_used = ips_used
+        self.ips_rejected = ips_rejected
+        self.tags_used = tags_used
+        self.tags_rejected = tags_rejected
+        self.gated = gated             # anchors (fix s - odometer, m) of the current run of gated IPS fixes
+        self.relocations = relocations
+
+    def copy_with(self, snap):
+        return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
+                      self.relocations)
+
+
+class UkfEstimator:
+    name = "ukf"
+
+    def __init__(self, layout, profile, **params):
+        self.layout = layout
+        self.profile = profile
+        self.params = make_params(params)
+        self.noise = noise_model(profile, self.params)
+        self.localized = False
+        self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout
+        self.late_measurements = 0   # arrived more than history_s after newer ones: dropped
+        self._clock = None
+        self._events = []            # in time order
+        self._states = []            # _states[i]: after _events[i]; None while unlocated
+        self._base = None            # state before _events[0]
+        self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
+        self._filter = None          # the TrackUkf the states are replayed on
+
+    # --- counters of the measurements in use -------------------------------------------------------------------------
+
+    @property
+    def _newest(self):
+        return self._states[-1] if self._states else self._base
+
+    @property
+    def unknown_tags(self):
+        """Tag reads with neither a usable telegram nor an entry in the layout."""
+        return self.balises.counts["unknown"]
+
+    @property
+    def rejected_ips(self):
+        """IPS fixes the gate turned away, among those the current state rests on."""
+        return self._newest.ips_rejected if self._newest else 0
+
+    @property
+    def scale_error(self):
+        """The encoder scale error learnt so far (None while unlocated or when it is not estimated)."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K:
+            return None
+        return float(state.snap[1][K])
+
+    def odometer_per_m_low(self, k_sigma: float) -> float:
+        """A lower bound of the encoder's odometer metres per true metre, 1 + scale error - k_sigma sigma: the
+        controller turns a distance along the track into odometer units with it, so a train whose encoder reads short
+        still stops within its authority. 1 - k_sigma * the prior sigma while unlocated or not estimated."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K:
+            return 1.0 - k_sigma * self.params.scale_sigma
+        _t, x, P = state.snap
+        return 1.0 + float(x[K]) - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
+
+    def counters(self) -> dict:
+        """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""
+        state = self._newest or _State(None)
+        return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
+                "tags_rejected": state.tags_rejected, "relocations": state.relocations,
+                "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
+                **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
+
+    # --- input ---------------------------------------------------------------------------------------------------------
+
+    def on_report(self, report: dict, board_clock) -> None:
+        """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
+        self._clock = board_clock
+        t_s = report["t_ms"] / 1000.0
+        new = [_Event(t_s, "odo", (report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0))]
+        for entry in report["tags"]:
+            tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
+            if tag_s_m is None:
+                continue
+            new.append(_Event(entry[2] / 1000.0, "tag", (tag_s_m, entry[1] / 1000.0)))
+        if report["ips"] is not None:
+            fix_t_ms, x_mm, y_mm = report["ips"]
+            x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
+            new.append(_Event(fix_t_ms / 1000.0 - self.profile.ips_latency_s, "ips", (x_m, y_m)))
+        self._insert(new)
+
+    def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
+        """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
+        measured at board time `t_s` (s); applied in time order like every other measurement (cbtc.ranging.toa)."""
+        self._insert([_Event(t_s, "range", (float(radio_xy[0]), float(radio_xy[1]), float(range_m), float(sigma_m)))])
+
+    def _insert(self, new):
+        keys = [e.sort_key for e in self._events]
+        start = len(self._events)
+        for event in sorted(new, key=lambda e: e.sort_key):
+            if self._trimmed and event.t_s < self._events[0].t_s:
+                self.late_measurements += 1
+                continue
+            index = bisect.bisect_right(keys, event.sort_key)
+            keys.insert(index, event.sort_key)
+            self._events.insert(index, event)
+            self._states.insert(index, None)
+            start = min(start, index)
+        self._replay(start)
+        self._trim()
+
+    # --- the filter ----------------------------------------------------------------------------------------------------
+
+    def _replay(self, start):
+        state = self._states[start - 1] if start > 0 else self._base
+        for i in range(start, len(self._events)):
+            state = self._apply(state, self._events[i])
+            self._states[i] = state
+        self.localized = self._newest is not None
+
+    def _trim(self):
+        newest_t = self._events[-1].t_s
+        drop = 0
+        while drop < len(self._events) - 1 and self._events[drop].t_s < newest_t - self.params.history_s:
+            drop += 1
+        if drop:
+            self._base = self._states[drop - 1]
+            self._trimmed = True
+            del self._events[:drop]
+            del self._states[:drop]
+
+    def _apply(self, state, event):
+        """The state after `event`, from `state` (None while unlocated)."""
+        if state is None:
+            return self._locate(event)
+        f = self._load(state)
+        f.predict_to(event.t_s)
+        new = state.copy_with(None)
+        if event.kind == "odo":
+            f.update_odometer(event.data[0])
+        elif event.kind == "tag":
+            if f.update_tag(*event.data):
+                new.tags_used += 1
+            else:
+                new.tags_rejected += 1
+        elif event.kind == "range":
+            f.update_range(*event.data)
+        elif f.update_ips(*event.data):
+            new.ips_used += 1
+            new.gated = ()
+        else:
+            new.ips_rejected += 1
+            d_m = float(f.ukf.x[D])
+            new.gated = (state.gated + (self.layout.project(*event.data) - d_m,))[-self.params.relocate_after:]
+            if len(new.gated) >= self.params.relocate_after:
+                placed = self._agreeing(new.gated)
+                if placed is not None:
+                    f.relocate(self.layout.wrap(placed[0] + d_m), placed[1])
+                    new.relocations += 1
+                    new.gated = ()
+        new.snap = f.snapshot()
+        return new
+
+    def _load(self, state):
+        if self._filter is None:
+            t_s, x, P = state.snap
+            self._filter = TrackUkf(self.layout, self.noise, x, P, t_s)
+        else:
+            self._filter.restore(state.snap)
+        return self._filter
+
+    def _agreeing(self, anchors_m):
+        """(anchor_m, sigma_m) where at least `locate_fixes` of the IPS anchors agree, sigma twice the IPS sigma over
+        the root of their number; None when they do not."""
+        found = agreeing_anchor(anchors_m, self.profile.ips_sigma_m, self.params.locate_fixes,
+                                self.layout.loop_length_m)
+        if found is None:
+            return None
+        return found[0], 2.0 * self.profile.ips_sigma_m / math.sqrt(found[1])
+
+    def _locate(self, event):
+        """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
+        ranges alone cannot. Called only while unlocated, so every IPS event up to this one is one of those fixes."""
+        if event.kind in ("odo", "range"):
+            return None
+        d_m, v_mps = self._odometer_at(event.t_s)
+        if event.kind == "tag":
+            tag_s_m, d_m = event.data
+            late_m = abs(v_mps) * self.noise.rfid_poll_s
+            s_m = tag_s_m - self.noise.rfid_range_m + 0.5 * late_m
+            sigma_s_m = math.sqrt(self.noise.tag_var_m2 + late_m ** 2 / 12.0)
+            used = _State(None, tags_used=1)
+        else:
+            anchors = []
+            for e in self._events:
+                if e.kind == "ips":
+                    anchors.append(self.layout.project(*e.data) - self._odometer_at(e.t_s)[0])
+                if e is event:
+                    break
+            placed = self._agreeing(anchors[-(2 * self.params.locate_fixes - 1):])
+            if placed is None:
+                return None
+            s_m, sigma_s_m = placed[0] + d_m, placed[1]
+            used = _State(None, ips_used=self.params.locate_fixes)
+        with_scale = self.params.scale_sigma > 0
+        x0 = [self.layout.wrap(s_m), v_mps, d_m] + ([0.0] if with_scale else [])
+        sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
+        P0 = initial_covariance(len(x0), sigma_s_m, sigma_v_mps, 0.002, self.params.scale_sigma)
+        self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
+        used.snap = self._filter.snapshot()
+        return used
+
+    def _odometer_at(self, t_s):
+        """(odometer m, speed m/s) at board time `t_s`, interpolated between the encoder reports around it."""
+        before = after = None
+        for e in self._events:
+            if e.kind != "odo":
+                continue
+            if e.t_s <= t_s:
+                before = e
+            else:
+                after = e
+                break
+        if before is None:
+            before = after
+        if after is None or after is before:
+            d_m, v_mps = before.data
+            return d_m + v_mps * (t_s - before.t_s), v_mps
+        w = (t_s - before.t_s) / (after.t_s - before.t_s)
+        d_m = before.data[0] + w * (after.data[0] - before.data[0])
+        v_mps = (after.data[0] - before.data[0]) / (after.t_s - before.t_s)
+        return d_m, v_mps
+
+    # --- output --------------------------------------------------------------------------------------------------------
+
+    def estimate(self, now_s: float):
+        """Head position, speed and their 1-sigma at controller time `now_s`, predicted from the newest data."""
+        state = self._newest
+        if state is None or self._clock is None:
+            return None
+        t_s, x, P = state.snap
+        offset_s = self._clock.offset_s
+        dt_s = (now_s - offset_s) - t_s
+        q = self.noise.accel_psd_m2ps3
+        adt = abs(dt_s)
+        var_s = P[S, S] + 2.0 * dt_s * P[S, V] + dt_s * dt_s * P[V, V] + q * adt ** 3 / 3.0
+        var_v = P[V, V] + q * adt
+        return Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
+                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
+                        data_t_s=self._events[-1].t_s + offset_s)

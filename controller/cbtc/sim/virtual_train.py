@@ -1,0 +1,87 @@
+"""A virtual train: true physics + simulated drivers + the firmware's own OnboardUnit, on a bus client.
+
+The OnboardUnit is the very class that runs on the board (firmware/obu.py); only its drivers are simulated
+(`ranging`: an optional train-to-train ranging driver, cbtc.sim.ranging, which arms the onboard collision guard). The
+scheduler calls `tick(now_s)` every loop period; the board's clock is the scheduler's plus a per-train offset, so
+nothing may assume the two sides share a clock.
+"""
+
+from cbtc.firmware_modules import obu as obu_module
+from cbtc.firmware_modules import wire
+from cbtc.railway import physics
+from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid
+
+
+class VirtualTrain:
+    def __init__(self, train_id, key, layout, profile, s0_m, client, rng, clock_offset_ms=0, obu_overrides=None,
+                 ranging=None):
+        self.train_id = train_id
+        self.layout = layout
+        self.profile = profile
+        self.client = client
+        self.s0_m = float(s0_m)
+        self.travelled_m = 0.0
+        self.v_mps = 0.0
+        self.a_mps2 = 0.0
+        self.clock_offset_ms = int(clock_offset_ms)
+        self.encoder = SimEncoder(profile, rng)
+        self.ips = SimIps(profile, layout, rng)
+        self.rfid = SimRfid(profile, layout, rng)
+        self.motor = SimMotor()
+        config = profile.obu_config()
+        config.update(obu_overrides or {})
+        self.obu = obu_module.OnboardUnit(train_id, key, self.encoder, self.ips, self.rfid, self.motor,
+                                          self._publish, config, ranging)
+        self._last_s = None
+        self._now_s = 0.0
+        self.frozen = False  # a dead board: no loop, no reports, motor state as it was
+        self.stopped_dead = False  # fault injection: the train stopped without braking (derailment, obstacle)
+        client.subscribe(wire.topic_command(train_id), self._on_command)
+        client.on_connect = self._on_connect
+
+    @property
+    def head_s(self) -> float:
+        """True head position along the track (m, wrapped on loops)."""
+        return self.layout.wrap(self.s0_m + self.travelled_m)
+
+    @property
+    def tail_s(self) -> float:
+        return self.layout.wrap(self.s0_m + self.travelled_m - self.profile.length_m)
+
+    def board_ms(self, now_s: float) -> int:
+        return int(round(now_s * 1000)) + self.clock_offset_ms
+
+    def _publish(self, topic, payload):
+        self.client.publish(topic, payload)
+
+    def _on_command(self, topic, payload):
+        self.obu.on_message(topic, payload, self.board_ms(self._now_s))
+
+    def _on_connect(self, client):
+        client.subscribe(wire.topic_command(self.train_id), self._on_command)
+
+    def stop_dead(self) -> None:
+        """Fault injection: the train stops at once where it is and stays (the brick-wall case)."""
+        self.stopped_dead = True
+        self.v_mps = 0.0
+        self.a_mps2 = 0.0
+
+    def tick(self, now_s: float) -> None:
+        """Advance physics to `now_s` under the motor command, then run one OnboardUnit loop."""
+        dt_s = 0.0 if self._last_s is None else now_s - self._last_s
+        self._last_s = now_s
+        self._now_s = now_s
+        if dt_s > 0 and not self.stopped_dead:
+            s_before, v_before = self.travelled_m, self.v_mps
+            self.travelled_m, self.v_mps, self.a_mps2 = physics.step(
+                self.travelled_m, self.v_mps, self.motor.duty_pct, self.motor.mode, dt_s, self.profile)
+            self.encoder.advance(self.travelled_m - s_before, dt_s, v_before, self.a_mps2)
+        elif dt_s > 0:
+            self.encoder.advance(0.0, dt_s)
+        if self.frozen:
+            return
+        now_ms = self.board_ms(now_s)
+        head_s = self.head_s
+        self.ips.sample(now_ms, head_s)
+        self.rfid.sense(head_s)
+        self.obu.step(now_ms)
