@@ -3,9 +3,10 @@
 import pytest
 
 from cbtc.firmware_modules import wire
+from cbtc.layout_files import load_layout
 from cbtc.railway import balise
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import Simulation, paper_scenario
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import paper_scenario
 
 KEY = b"0123456789abcdef"
 

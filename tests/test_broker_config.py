@@ -13,8 +13,8 @@ import pytest
 from cbtc.bus.broker_config import acl_text, config_text, password_hash, write_config
 from cbtc.cli import main
 from cbtc.errors import ConfigError
-from cbtc.live.fleet import load_keys, train_keys
-from cbtc.sim.simulation import train_key
+from cbtc.live.keys import load_keys, train_keys
+from cbtc.zone.config import train_key
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

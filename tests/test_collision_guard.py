@@ -88,7 +88,7 @@ def test_long_or_stale_gap_leaves_the_train_alone():
 
 def test_faulty_leader_guard_prevents_the_collision_that_happens_without_it():
     from cbtc.experiments.guard import run_guard_case
-    from cbtc.railway.layout import load_layout
+    from cbtc.layout_files import load_layout
     layout = load_layout("itb_square")
     for seed in range(3):
         off = run_guard_case(layout, seed, guard=False, duration_s=40.0)
@@ -100,7 +100,7 @@ def test_faulty_leader_guard_prevents_the_collision_that_happens_without_it():
 
 def test_the_controller_takes_the_shorter_of_estimated_and_measured_gap_and_raises_the_alarm():
     from cbtc.authority.moving_block import MovingBlockPolicy
-    from cbtc.railway.layout import load_layout
+    from cbtc.layout_files import load_layout
     from cbtc.zone.controller import TrainSetup, ZoneController
 
     class Quiet:

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
+from cbtc.layout_files import load_layout
 from cbtc.railway.geometry import Path
-from cbtc.railway.layout import load_layout
 
 R40_M = 0.32
 QUARTER_M = math.pi / 2 * R40_M          # a 90-degree R40 corner

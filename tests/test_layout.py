@@ -8,14 +8,9 @@ import yaml
 
 from cbtc.cli import main as cbtc_main
 from cbtc.errors import LayoutError
-from cbtc.railway.layout import (
-    CLOSE_TOLERANCE_DEG,
-    CLOSE_TOLERANCE_M,
-    Block,
-    layout_from_dict,
-    layout_names,
-    load_layout,
-)
+from cbtc.layout_files import layout_names, load_layout
+from cbtc.railway.layout import Block
+from cbtc.railway.layout_dict import CLOSE_TOLERANCE_DEG, CLOSE_TOLERANCE_M, layout_from_dict
 
 SHIPPED = {"itb_square", "lego_oval", "lego_chicane", "straight_test"}
 

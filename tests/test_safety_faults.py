@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from cbtc.bus.mock_broker import LinkProfile
-from cbtc.railway.layout import load_layout
+from cbtc.layout_files import load_layout
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
-from cbtc.sim.simulation import ScenarioConfig, Simulation, TrainSpec, paper_scenario
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import ScenarioConfig, TrainSpec, paper_scenario
 
 
 @pytest.fixture(scope="module")

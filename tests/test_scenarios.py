@@ -6,7 +6,7 @@ import pytest
 
 from cbtc.cli import main as cbtc_main
 from cbtc.experiments.headway import reductions, run_paper_systems, steady_following
-from cbtc.railway.layout import load_layout
+from cbtc.layout_files import load_layout
 
 
 def run_json(capsys, argv):
@@ -41,7 +41,7 @@ def test_a_fixed_block_gridlock_is_refused_before_it_starts(capsys, argv, named)
 
 
 def test_how_long_every_train_has_stood_still_flags_a_gridlock():
-    from cbtc.sim.simulation import all_standing_s
+    from cbtc.sim.recorder import all_standing_s
 
     t = [0.0, 1.0, 2.0, 3.0, 4.0]
     assert all_standing_s(t, [[0.1, 0.2, 0.0, 0.0, 0.0], [0.0, 0.0, 0.3, 0.0, 0.0]]) == 2.0
@@ -89,7 +89,8 @@ def test_a_report_is_answered_across_two_wifi_legs_and_the_controllers_loopback(
     end of authority rests on the leader's data that much sooner."""
     import numpy as np
 
-    from cbtc.sim.simulation import Simulation, paper_scenario
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import paper_scenario
 
     sim = Simulation(paper_scenario(load_layout("itb_square"), seed=4, laps=1, duration_s=10.0))
     sent, answered = {}, {}
@@ -120,7 +121,8 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
     """The controller asks a train for 20 ms reports while the train behind is held by it: the follower's authority
     rests on the age of that data. Far apart, both report at the board's own 50 ms."""
     from cbtc.railway.train_profile import TrainProfile
-    from cbtc.sim.simulation import ScenarioConfig, Simulation, TrainSpec
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import ScenarioConfig, TrainSpec
 
     layout = load_layout("itb_square")
     fast, slow = TrainProfile(), TrainProfile().with_changes(v_max_mps=0.3)
@@ -146,7 +148,8 @@ def test_fast_reports_stay_within_the_controllers_report_budget_most_urgent_firs
     """Four trains close behind each other on a small loop, every one held by the one ahead; a controller sized for
     4 x 20 + 30 reports a second has one fast slot: exactly one train reports at 20 ms at a time, the one whose
     follower has the least authority left."""
-    from cbtc.sim.simulation import Simulation, queue_scenario
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import queue_scenario
 
     config = queue_scenario(load_layout("lego_oval"), 4, seed=1, duration_s=40.0, report_budget_hz=110.0)
     sim = Simulation(config)
@@ -170,7 +173,8 @@ def test_the_controller_tells_each_board_a_low_bound_of_its_encoder_scale(scale_
     """A wheel reading 3 % short or 2 % long: once the UKF has learnt the scale, the commands carry a low bound of
     it (odometer mm per true m), below the truth and within 1.5 % of it, which the board's braking curves use."""
     from cbtc.railway.train_profile import TrainProfile
-    from cbtc.sim.simulation import ScenarioConfig, Simulation, TrainSpec
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import ScenarioConfig, TrainSpec
 
     layout = load_layout("itb_square")
     profile = TrainProfile().with_changes(encoder_scale_error=scale_error, encoder_slip_sigma=0.002)

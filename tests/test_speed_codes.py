@@ -3,8 +3,9 @@
 import pytest
 
 from cbtc.authority.speed_code_channel import SpeedCodeChannel
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import Simulation, paper_scenario
+from cbtc.layout_files import load_layout
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import paper_scenario
 
 
 def test_a_clean_channel_delivers_every_code():

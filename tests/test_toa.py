@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from cbtc.railway.layout import load_layout
+from cbtc.layout_files import load_layout
 from cbtc.ranging import toa
 
 

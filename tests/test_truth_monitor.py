@@ -2,7 +2,7 @@
 
 from types import SimpleNamespace
 
-from cbtc.live.fleet import TruthMonitor
+from cbtc.sim.truth import TruthMonitor
 
 
 def _train(odo_mm, eoa_mm):

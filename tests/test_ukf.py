@@ -23,8 +23,8 @@ from cbtc.estimation.track_ukf import (
     process_noise,
 )
 from cbtc.estimation.ukf_estimator import UkfEstimator
+from cbtc.layout_files import load_layout
 from cbtc.railway.ips_frame import track_to_ips
-from cbtc.railway.layout import load_layout
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim.drivers import SimEncoder, SimIps, SimRfid
 

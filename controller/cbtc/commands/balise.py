@@ -6,8 +6,8 @@
 
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import CbtcError
+from cbtc.layout_files import load_layout
 from cbtc.railway import balise
-from cbtc.railway.layout import load_layout
 
 
 def register(sub):

@@ -9,7 +9,7 @@ read only its own commands.
 import os
 
 from cbtc.bus.broker_config import load_credentials, write_config
-from cbtc.live.fleet import parse_ids
+from cbtc.commands.common import parse_ids
 
 
 def register(sub):

@@ -1,7 +1,12 @@
-"""Helpers shared by sub-commands: printing tables and JSON."""
+"""Helpers shared by sub-commands: printing tables and JSON, the options of live commands."""
 
 import json
+import os
 import sys
+
+from cbtc.bus.broker_config import checked_train_ids
+from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, train_keys
+from cbtc.zone.config import fleet_config
 
 
 def print_json(data) -> None:
@@ -51,3 +56,54 @@ def run_scenario_and_report(config, title, args) -> int:
         if args.plot:
             print(f"distance-time plot: {args.plot}")
     return 0 if summary["collisions"] == 0 else 1
+
+
+def write_json(path: str, data) -> None:
+    """Write `data` as JSON to `path` atomically (readers never see half a file)."""
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        json.dump(data, fh, indent=2, sort_keys=True)
+    os.replace(tmp, path)
+
+
+def fmt(value, digits=2) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def add_connection_args(p, broker_default=None) -> None:
+    """--broker, --username, --password, --credentials: how a live command reaches the broker."""
+    p.add_argument("--broker", required=broker_default is None, default=broker_default, metavar="URL",
+                   help="MQTT broker, mqtt://HOST:PORT")
+    p.add_argument("--username", default=None, help=f"broker user name (default: ${ENV_USERNAME})")
+    p.add_argument("--password", default=None, help=f"broker password (default: ${ENV_PASSWORD})")
+    p.add_argument("--credentials", default=None, metavar="FILE",
+                   help="credentials.json from `cbtc broker config`: each client logs in as its own user")
+
+
+def add_fleet_args(p) -> None:
+    """--layout, --trains/--count, --scenario, --keys/--sim-seed: which trains, where, with which keys."""
+    p.add_argument("--layout", required=True, help="layout file or packaged name, e.g. itb_square")
+    p.add_argument("--trains", default=None, metavar="IDS", help="train ids, e.g. A,B")
+    p.add_argument("--count", type=int, default=None, help="number of trains (ids from the scenario), default 2")
+    p.add_argument("--scenario", choices=("auto", "paper", "queue"), default="auto",
+                   help="start positions and stops: paper (2 trains, stations main/A/B) or queue; auto picks paper "
+                        "when it fits")
+    p.add_argument("--keys", default=None, metavar="FILE", help="JSON keys file {train_id: hex key} (cbtc keys new)")
+    p.add_argument("--sim-seed", type=int, default=0,
+                   help="without --keys: derive the keys as the simulator does from this seed (default 0)")
+    p.add_argument("--status-period", type=float, default=1.0, help="seconds between status lines (default 1)")
+    p.add_argument("--quiet", action="store_true", help="no status lines")
+
+
+def fleet_from_args(args, layout, seed: int = 0):
+    """(ScenarioConfig, {train_id: key}) from the fleet options."""
+    ids = parse_ids(args.trains) if args.trains else None
+    count = args.count if args.count is not None else (None if ids else 2)
+    config = fleet_config(layout, ids, count, args.scenario, seed=seed)
+    train_ids = [spec.train_id for spec in config.trains]
+    return config, train_keys(train_ids, args.keys, args.sim_seed)
+
+
+def parse_ids(text: str) -> list:
+    """'A,B' -> ['A', 'B'] (each a valid train id, no duplicates)."""
+    return checked_train_ids([t.strip() for t in text.split(",") if t.strip()], f"--trains {text!r}")

@@ -11,7 +11,7 @@ from cbtc.experiments.headway import (
     steady_following,
 )
 from cbtc.experiments.plots import distance_time_png
-from cbtc.railway.layout import load_layout
+from cbtc.layout_files import load_layout
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
            ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("trains_per_hour", "trains/h"),

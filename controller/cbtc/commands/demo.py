@@ -1,8 +1,8 @@
 """`cbtc demo`: the source paper's scenario, two trains on the square loop, on the embedded mock broker."""
 
 from cbtc.commands.common import run_scenario_and_report
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import paper_scenario
+from cbtc.layout_files import load_layout
+from cbtc.zone.config import paper_scenario
 
 
 def register(sub):

@@ -11,8 +11,9 @@ from cbtc.experiments.fusion_table import (
     paper_ordering_holds,
     records_from_recorder,
 )
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import Simulation, paper_scenario
+from cbtc.layout_files import load_layout
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import paper_scenario
 
 
 def register(sub):

@@ -7,8 +7,9 @@ with the key of the train it is addressed to. Keep the file private.
 import json
 import os
 
+from cbtc.commands.common import parse_ids
 from cbtc.errors import ConfigError
-from cbtc.live.fleet import new_keys, parse_ids
+from cbtc.live.keys import new_keys
 
 
 def register(sub):

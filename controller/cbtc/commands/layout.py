@@ -3,8 +3,8 @@
 import numpy as np
 
 from cbtc.commands.common import format_table, print_json
+from cbtc.layout_files import layout_names, load_layout
 from cbtc.railway.ips_frame import ips_to_track
-from cbtc.railway.layout import layout_names, load_layout
 
 
 def register(sub):

@@ -2,8 +2,8 @@
 
 from cbtc.commands.common import run_scenario_and_report
 from cbtc.errors import ConfigError
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import queue_scenario
+from cbtc.layout_files import load_layout
+from cbtc.zone.config import queue_scenario
 
 
 def register(sub):

@@ -9,19 +9,12 @@ import secrets
 import sys
 
 from cbtc.bus.paho_bus import PahoBus
+from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, fmt, write_json
 from cbtc.firmware_modules import wire
-from cbtc.live.fleet import (
-    LiveLoop,
-    add_connection_args,
-    add_fleet_args,
-    credentials,
-    fleet_from_args,
-    fmt,
-    write_json,
-)
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import make_estimator_factory, make_policy
-from cbtc.zone.controller import TrainSetup, ZoneController
+from cbtc.layout_files import load_layout
+from cbtc.live.keys import credentials
+from cbtc.live.loop import LiveLoop
+from cbtc.zone.factory import build_zone
 
 STOP_GRACE_S = 0.5
 
@@ -48,21 +41,18 @@ def run(args):
     seed = secrets.randbits(31) if args.seed is None else args.seed
     config, keys = fleet_from_args(args, layout)
     config.policy, config.estimator = args.policy, args.estimator
-    setups = [TrainSetup(spec.train_id, keys[spec.train_id], spec.profile, tuple(spec.stops), config.dwell_s)
-              for spec in config.trains]
     username, password = credentials("zc", args.username, args.password, args.credentials)
     loop = LiveLoop()
     bus = PahoBus(args.broker, f"zc-{args.zone_id}", status_topic=wire.topic_zone_status(args.zone_id),
                   username=username, password=password, inbox=loop.inbox).start()
-    zc = ZoneController(layout, setups, bus, loop.now_s, make_policy(config), config.params,
-                        make_estimator_factory(config.estimator), config.cycle_s, zone_id=args.zone_id, seed=seed,
-                        report_budget_hz=args.report_budget_hz)
+    zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
+                    report_budget_hz=args.report_budget_hz)
     zc.start()
     cycle = loop.scheduler.call_every(config.cycle_s, zc.cycle, start_s=loop.now_s() + 0.05)
     if not args.quiet:
         loop.scheduler.call_every(args.status_period, lambda now_s: _print_status(zc, bus, now_s),
                                   start_s=loop.now_s() + args.status_period)
-    print(f"zone {args.zone_id}: {len(setups)} trains {[s.train_id for s in setups]} on {layout.name}, broker "
+    print(f"zone {args.zone_id}: {len(config.trains)} trains {[s.train_id for s in config.trains]} on {layout.name}, broker "
           f"{bus.host}:{bus.port}, session {zc.session_id}", flush=True)
     loop.install_signal_handlers()
     loop.run(args.duration)

@@ -9,8 +9,9 @@ controller is told not to use the measured gap for authority here (it only raise
 the guard alone is what prevents the collision.
 """
 
-from cbtc.railway.layout import load_layout
-from cbtc.sim.simulation import Simulation, paper_scenario
+from cbtc.layout_files import load_layout
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import paper_scenario
 
 ENCODER_FAULT = 1.5
 IPS_OFFSET_M = 1.0

@@ -9,7 +9,8 @@ import numpy as np
 from cbtc.authority.rules import AuthorityParams, minimum_gap_m
 from cbtc.firmware_modules import obu
 from cbtc.railway.train_profile import TrainProfile
-from cbtc.sim.simulation import ScenarioConfig, Simulation, TrainSpec, paper_scenario
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import ScenarioConfig, TrainSpec, paper_scenario
 
 PAPER = {"fixed_gap_m": 1.89, "cbtc_gap_m": 0.91, "fixed_lap_s": 15.72, "cbtc_lap_s": 6.84,
          "gap_reduction_pct": 52.0, "lap_reduction_pct": 56.0}

@@ -1,0 +1,47 @@
+"""Builds a zone from a config: its policy, its estimators and the ZoneController itself, the same for a simulated
+and a live run."""
+
+from cbtc.authority.moving_block import MovingBlockPolicy
+from cbtc.errors import ConfigError
+from cbtc.zone.config import ScenarioConfig
+from cbtc.zone.controller import TrainSetup, ZoneController
+
+
+def make_policy(config: ScenarioConfig):
+    if config.policy == "moving_block":
+        return MovingBlockPolicy(config.params)
+    if config.policy == "fixed_block":
+        from cbtc.authority.fixed_block import FixedBlockPolicy
+        try:
+            policy = FixedBlockPolicy(config.params, **{"seed": config.seed, **config.policy_options})
+            blocks = policy.blocks(config.layout)
+        except ValueError as exc:
+            raise ConfigError(f"fixed block: {exc}") from None
+        if config.layout.closed and len(blocks) <= len(config.trains):
+            raise ConfigError(f"fixed block: {len(config.trains)} trains on the {len(blocks)} blocks of loop "
+                              f"{config.layout.name} cannot move (each needs a clear block ahead): give more blocks "
+                              f"than trains, each well longer than a train and its margin, since a train across a "
+                              f"block boundary holds two (cbtc sim --blocks)")
+        return policy
+    raise ConfigError(f"unknown policy {config.policy!r}: use moving_block or fixed_block")
+
+
+def make_estimator_factory(name: str):
+    if name == "ukf":
+        from cbtc.estimation.ukf_estimator import UkfEstimator
+        return UkfEstimator
+    if name == "odometry":
+        from cbtc.estimation.odometry_estimator import OdometryEstimator
+        return OdometryEstimator
+    raise ConfigError(f"unknown estimator {name!r}: use ukf or odometry")
+
+
+def build_zone(config: ScenarioConfig, keys: dict, client, now_fn, zone_id: str = "zc1", seed: int = None,
+               report_budget_hz: float = None) -> ZoneController:
+    """The ZoneController of `config`'s trains on `client`, with keys {train_id: key}, reading time from `now_fn`."""
+    setups = [TrainSetup(spec.train_id, keys[spec.train_id], spec.profile, tuple(spec.stops), config.dwell_s)
+              for spec in config.trains]
+    return ZoneController(config.layout, setups, client, now_fn, make_policy(config), config.params,
+                          make_estimator_factory(config.estimator), config.cycle_s, zone_id=zone_id,
+                          seed=config.seed if seed is None else seed,
+                          report_budget_hz=config.report_budget_hz if report_budget_hz is None else report_budget_hz)
