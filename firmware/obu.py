@@ -19,7 +19,10 @@ the "guard" fault while that holds. It is independent of the zone controller's p
 
 from math import sqrt
 
-import wire
+try:
+    from . import wire  # the controller imports the firmware as the package cbtc.firmware
+except ImportError:
+    import wire  # a board holds the firmware's modules at the top level
 
 try:
     from micropython import const

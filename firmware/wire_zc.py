@@ -7,7 +7,13 @@ names on first use (`wire.decode_report`, `wire.MODES`), so a board never loads 
 
 import json
 
-from wire import INT31, MAX_TAGS, VERSION, WireError, check_ints, decode_sealed, seal, topic_command
+try:
+    from . import wire  # the controller imports the firmware as the package cbtc.firmware
+except ImportError:
+    import wire  # top level, as under the MicroPython unix port
+
+INT31, MAX_TAGS, VERSION, WireError = wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
+check_ints, decode_sealed, seal, topic_command = wire.check_ints, wire.decode_sealed, wire.seal, wire.topic_command
 
 try:
     from micropython import const

@@ -1,6 +1,14 @@
-"""Shared pytest fixtures."""
+"""Shared pytest fixtures. The board-side checks (tests/mpy, run under CPython and the MicroPython unix port) import
+the firmware's modules by their board names (`drivers.ips`), so the firmware folder is on this test process's path."""
+
+import sys
 
 import pytest
+
+from cbtc.firmware.manifest import FIRMWARE_DIR
+
+if FIRMWARE_DIR not in sys.path:
+    sys.path.append(FIRMWARE_DIR)
 
 
 @pytest.fixture(scope="session")

@@ -13,6 +13,7 @@ import subprocess
 import pytest
 
 from cbtc.board.mpy_build import build, mpy_cross_command
+from cbtc.firmware import manifest
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHIMS_DIR = os.path.join(REPO, "tests", "mpy", "shims")
@@ -40,8 +41,9 @@ def _compile(src, out_dir, rel, opt=()):
 
 
 def build_tree(out_dir):
-    """Compile firmware, shims, tests/mpy modules and vendor/umqtt into `out_dir` (.mpy); returns out_dir."""
-    build(out_dir)
+    """Compile the train board's firmware and the protocol modules the controller shares (manifest), shims,
+    tests/mpy modules and vendor/umqtt into `out_dir` (.mpy); returns out_dir."""
+    build(out_dir, manifest.TRAIN + manifest.SHARED)
     for name in os.listdir(MPY_TESTS_DIR):
         if name.endswith(".py"):
             _compile(os.path.join(MPY_TESTS_DIR, name), out_dir, name[:-3] + ".mpy")

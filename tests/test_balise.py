@@ -2,8 +2,8 @@
 
 import pytest
 
-from cbtc.firmware_modules import wire
 from cbtc.layout_files import load_layout
+from cbtc.protocol import wire
 from cbtc.railway import balise
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import paper_scenario

@@ -18,7 +18,7 @@ import time
 
 import paho.mqtt.client as mqtt
 
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 from mpy_harness import (
     MPY_TESTS_DIR,
     SHIMS_DIR,

@@ -1,6 +1,7 @@
 """The onboard collision guard: brakes on a short measured gap whatever the commands say; saves the faulty-leader case."""
 
-from cbtc.firmware_modules import obu, wire
+from cbtc.firmware import obu
+from cbtc.protocol import wire
 from fake_drivers import FakeEncoder, FakeIps, FakeMotor, FakeRfid
 
 KEY = b"0123456789abcdef"

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from cbtc.firmware_modules import FIRMWARE_DIR
+from cbtc.firmware.manifest import FIRMWARE_DIR
 from mpy_harness import MPY_TESTS_DIR, SHIMS_DIR, requires_micropython, run_micropython
 
 for _folder in (SHIMS_DIR, MPY_TESTS_DIR, FIRMWARE_DIR):

@@ -12,7 +12,7 @@ import subprocess
 import pytest
 
 from cbtc.board.mpy_build import build
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 
 MICROPYTHON = shutil.which("micropython")
 pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "

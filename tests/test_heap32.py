@@ -20,7 +20,7 @@ import sys
 import pytest
 
 from cbtc.board.mpy_build import build
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 from mpy_harness import MPY_TESTS_DIR, REPO, SHIMS_DIR, VENDOR_DIR, _compile
 
 WASM_DIR = os.path.join(REPO, "tests", "wasm")

@@ -17,7 +17,7 @@ import pytest
 
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.errors import BusError
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 
 pytestmark = pytest.mark.mosquitto
 

@@ -2,7 +2,8 @@
 
 import pytest
 
-from cbtc.firmware_modules import obu, wire
+from cbtc.firmware import obu
+from cbtc.protocol import wire
 from fake_drivers import (
     BrokenSensor,
     FakeEncoder,

@@ -7,8 +7,8 @@ import pytest
 
 from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
-from cbtc.firmware_modules import wire
 from cbtc.layout_files import load_layout
+from cbtc.protocol import wire
 from cbtc.railway import physics
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.scheduler import VirtualScheduler

@@ -132,7 +132,7 @@ def test_estimates_track_truth_in_the_demo(square):
 
 def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     """A train's board reboots mid-run: seq and clock start again; the controller re-locates it before it moves."""
-    from cbtc.firmware_modules import obu as obu_module
+    from cbtc.firmware import obu as obu_module
     from cbtc.sim.drivers import SimIps
     sim = Simulation(paper_scenario(square, seed=6, laps=None, duration_s=60))
     run_to(sim, 15.0)

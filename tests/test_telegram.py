@@ -7,8 +7,8 @@ import subprocess
 
 import pytest
 
-import telegram
-from cbtc.firmware_modules import FIRMWARE_DIR  # puts the firmware folder on sys.path
+from cbtc.firmware.manifest import FIRMWARE_DIR
+from cbtc.protocol import telegram
 
 BALISE = telegram.balise_payload(0x04A7, 1234567, 0x05)
 

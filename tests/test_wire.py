@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 
 KEY = bytes(range(16))
 

@@ -16,7 +16,7 @@ except ImportError:  # CPython
     def const(value):
         return value
 
-from time import ticks_diff, ticks_us   # CPython has none: the host checks lend it MicroPython's (tests/mpy)
+from time import ticks_diff, ticks_us  # CPython has none: the host checks lend it MicroPython's (tests/mpy)
 
 _RISING = const(1)       # machine.Pin.IRQ_RISING on the ESP8266
 _FALLING = const(2)      # machine.Pin.IRQ_FALLING

@@ -21,7 +21,7 @@ from cbtc.authority.rules import (
     minimum_gap_m,
     moving_block_distance_m,
 )
-from cbtc.firmware_modules import obu
+from cbtc.firmware import obu
 
 _STANDING_MPS = 0.02
 _STOP_WINDOW_M = obu.DEFAULTS["stop_window_mm"] / 1000.0   # the onboard service curve ends this short of the limit

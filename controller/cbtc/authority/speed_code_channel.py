@@ -10,7 +10,7 @@ Pure apart from its own seeded random source.
 import random
 
 from cbtc.errors import ConfigError
-from cbtc.firmware_modules import telegram
+from cbtc.protocol import telegram
 
 
 class SpeedCodeChannel:

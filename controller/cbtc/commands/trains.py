@@ -12,10 +12,10 @@ import numpy as np
 from cbtc.bus.broker_config import train_user
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, write_json
-from cbtc.firmware_modules import wire
 from cbtc.layout_files import load_layout
 from cbtc.live.keys import credentials
 from cbtc.live.loop import LiveLoop
+from cbtc.protocol import wire
 from cbtc.sim.truth import TruthMonitor
 from cbtc.sim.virtual_train import VirtualTrain
 

@@ -10,10 +10,10 @@ import sys
 
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, fmt, write_json
-from cbtc.firmware_modules import wire
 from cbtc.layout_files import load_layout
 from cbtc.live.keys import credentials
 from cbtc.live.loop import LiveLoop
+from cbtc.protocol import wire
 from cbtc.zone.factory import build_zone
 
 STOP_GRACE_S = 0.5

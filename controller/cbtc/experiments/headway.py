@@ -7,7 +7,7 @@ the tests and anyone's notebook get the same numbers.
 import numpy as np
 
 from cbtc.authority.rules import AuthorityParams, minimum_gap_m
-from cbtc.firmware_modules import obu
+from cbtc.firmware import obu
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import ScenarioConfig, TrainSpec, paper_scenario

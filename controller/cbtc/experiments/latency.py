@@ -31,9 +31,10 @@ import numpy as np
 from cbtc.bus.broker_config import MosquittoProcess
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.errors import BusError
-from cbtc.firmware_modules import obu, wire
+from cbtc.firmware import obu
 from cbtc.layout_files import load_layout
 from cbtc.live.loop import LiveLoop
+from cbtc.protocol import wire
 from cbtc.railway.layout_dict import layout_from_dict
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import queue_scenario, train_key

@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 
-from cbtc.firmware_modules import telegram
+from cbtc.protocol import telegram
 from cbtc.ranging import transponder as tp
 
 CODE_BITS = (5, 7, 10)                 # chip lengths 31, 127, 1023

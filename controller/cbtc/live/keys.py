@@ -7,7 +7,7 @@ import os
 import secrets
 
 from cbtc.errors import ConfigError
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 from cbtc.zone.config import train_key
 
 ENV_USERNAME = "CBTC_MQTT_USERNAME"

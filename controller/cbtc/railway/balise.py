@@ -8,7 +8,7 @@ the layout, if there is one. A telegram that disagrees with the layout by more t
 moved or the layout is out of date: the read is not used and the mismatch is counted, so nobody trusts either.
 """
 
-from cbtc.firmware_modules import telegram
+from cbtc.protocol import telegram
 
 IMAGE_BYTES = 16
 FRAME_BITS = telegram.frame_bits(6)      # 126: the balise telegram

@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from cbtc.authority.rules import following_reach_m
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 from cbtc.sim.truth import head_inside, train_ahead
 from cbtc.zone.config import train_key
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
-from cbtc.firmware_modules import wire
+from cbtc.protocol import wire
 from cbtc.scheduler import VirtualScheduler
 from cbtc.sim.recorder import Recorder
 from cbtc.sim.virtual_train import VirtualTrain

@@ -6,8 +6,8 @@ scheduler calls `tick(now_s)` every loop period; the board's clock is the schedu
 nothing may assume the two sides share a clock.
 """
 
-from cbtc.firmware_modules import obu as obu_module
-from cbtc.firmware_modules import wire
+from cbtc.firmware import obu as obu_module
+from cbtc.protocol import wire
 from cbtc.railway import physics
 from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid
 

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 
 from cbtc.authority.rules import AuthorityParams, following_reach_m
 from cbtc.estimation.estimate import BoardClock
-from cbtc.firmware_modules import obu, wire
+from cbtc.firmware import obu
+from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 
 log = logging.getLogger("cbtc.zone")
