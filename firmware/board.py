@@ -18,7 +18,8 @@ except ImportError:  # CPython
     def const(value):
         return value
 
-_ENCODER_A = const(2)         # D4  encoder output (open collector, on-board pull-up); strapping pin: must be high at boot
+# D4: encoder output (open collector, on-board pull-up); a strapping pin, so it must be high at boot
+_ENCODER_A = const(2)
                               # (no pin left for a second channel: direction comes from the motor command)
 _MOTOR_IN1 = const(5)         # D1  H-bridge IN1 (forward PWM)
 _MOTOR_IN2 = const(4)         # D2  H-bridge IN2 (reverse PWM)

@@ -89,7 +89,8 @@ class OnboardUnit:
             cfg = dict(DEFAULTS)
             for name in config:
                 if name not in DEFAULTS:
-                    raise ValueError("unknown OnboardUnit config key %r; known: %s" % (name, ", ".join(sorted(DEFAULTS))))
+                    raise ValueError("unknown OnboardUnit config key %r; known: %s"
+                                     % (name, ", ".join(sorted(DEFAULTS))))
                 cfg[name] = config[name]
         self.cfg = cfg
         self._report_topic = wire.topic_report(train_id)

@@ -1,4 +1,5 @@
-"""The onboard collision guard: brakes on a short measured gap whatever the commands say; saves the faulty-leader case."""
+"""The onboard collision guard: brakes on a short measured gap whatever the commands say; saves the faulty-leader
+case."""
 
 from cbtc.firmware import obu
 from cbtc.protocol import wire
@@ -25,7 +26,8 @@ class Bench:
         self.ranging = FakeRanging()
         self.unit = obu.OnboardUnit("B", KEY, self.enc, FakeIps(), FakeRfid(), self.motor,
                                     lambda topic, payload: self.sent.append((topic, payload)),
-                                    {"counts_per_m": 1000, "emergency_dec_mmps2": 1400, "reaction_ms": 60, "report_ms": 100},
+                                    {"counts_per_m": 1000, "emergency_dec_mmps2": 1400, "reaction_ms": 60,
+                                     "report_ms": 100},
                                     ranging=self.ranging)
         self.now_ms = 0
         self.seq = 0

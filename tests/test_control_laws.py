@@ -51,7 +51,8 @@ def test_departure_k_respects_both_traction_limits():
 
 
 def _integrate_pair(a_leader, follower_accel, gap0_m, vA0, vB0, beta_s, margin_m, t_end_s, dt_s=1e-4):
-    """Two point trains: leader with a given acceleration profile, follower under a control law; returns max gap error."""
+    """Two point trains: leader with a given acceleration profile, follower under a control law; returns max gap
+    error."""
     xA, xB, vA, vB = gap0_m, 0.0, vA0, vB0
     worst = 0.0
     t = 0.0
@@ -74,7 +75,8 @@ def test_sync_control_holds_the_gap_at_minimum_in_an_analytic_two_train_run():
     # leader slows from 0.6 to 0.2 m/s at 0.3 m/s^2, then cruises; follower starts at S_min(0.6)
     leader = lambda t, vA: -0.3 if vA > 0.2 else 0.0
     follower = lambda vA, vB: -sync_deceleration_mps2(vB, vA, beta_s) if vB > 0 else 0.0
-    worst, gap, vB = _integrate_pair(leader, follower, minimum_gap_m(vB0, beta_s, margin), 0.6, vB0, beta_s, margin, 4.0)
+    worst, gap, vB = _integrate_pair(leader, follower, minimum_gap_m(vB0, beta_s, margin), 0.6, vB0, beta_s, margin,
+                                     4.0)
     assert worst < 1e-3, f"gap left S_min(v_B) by {worst * 1000:.2f} mm"
     assert vB == pytest.approx(0.2, abs=0.01)
 

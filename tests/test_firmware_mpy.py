@@ -118,7 +118,8 @@ def test_cpython_and_micropython_agree_on_the_mac():
     assert rc == 0, err
     # MicroPython's json may order keys differently: the MAC covers the bytes, so each side verifies the other's
     assert wire.decode_command(b"0123456789abcdef", "cbtc/train/A/cmd", out.strip().encode())["eoa_mm"] == 777
-    rc, out, err = run_mpy("import wire\nprint(wire.decode_command(b'0123456789abcdef', 'cbtc/train/A/cmd', %r)['eoa_mm'])"
+    rc, out, err = run_mpy("import wire\n"
+                           "print(wire.decode_command(b'0123456789abcdef', 'cbtc/train/A/cmd', %r)['eoa_mm'])"
                            % cpy)
     assert rc == 0 and out.strip() == "777", err
 

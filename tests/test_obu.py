@@ -1,4 +1,5 @@
-"""The OnboardUnit's safety behaviour with scripted drivers: no authority no motion, watchdog, replay, staleness, trip."""
+"""The OnboardUnit's safety behaviour with scripted drivers: no authority no motion, watchdog, replay, staleness,
+trip."""
 
 import pytest
 

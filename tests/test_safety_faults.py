@@ -110,7 +110,8 @@ def test_broker_loss_stops_every_train_and_operation_resumes(square):
         assert client.reconnect()
     sim.zc.start()
     run_to(sim, 40.0)
-    assert all(t.travelled_m > d + 1.0 for t, d in zip(sim.trains, before)), "operation resumes after the broker returns"
+    resumed = all(t.travelled_m > d + 1.0 for t, d in zip(sim.trains, before))
+    assert resumed, "operation resumes after the broker returns"
     assert sum(sim.recorder.collisions) == 0
 
 
@@ -150,7 +151,8 @@ def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     run_to(sim, 45.0)
     state = sim.zc.trains[train.train_id]
     assert state.restarts == 1
-    assert train.obu.cseq > 0, f"the rebooted board obeys commands again ({train.obu.rejected}: {train.obu.last_reject})"
+    assert train.obu.cseq > 0, (f"the rebooted board obeys commands again "
+                                f"({train.obu.rejected}: {train.obu.last_reject})")
     assert train.travelled_m > sim.recorder.travelled_m[1][int(20.0 / 0.02)] + 2.0
     assert sum(sim.recorder.collisions) == 0 and sum(sim.recorder.overruns) == 0
 

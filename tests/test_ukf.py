@@ -100,7 +100,7 @@ def straight():
     return load_layout("straight_test")
 
 
-# --- the oracle: on a straight the IPS model is linear, so the UKF must be the Kalman filter ---------------------------
+# --- the oracle: on a straight the IPS model is linear, so the UKF must be the Kalman filter --------------------------
 
 def test_ukf_equals_linear_kalman_filter_on_a_straight(straight):
     noise = NoiseModel(accel_psd_m2ps3=0.3, slip_var_m2_per_m=2e-6, scale_var_per_m=0.0, odo_var_m2=1e-7,
@@ -137,7 +137,7 @@ def test_ukf_equals_linear_kalman_filter_on_a_straight(straight):
     assert abs(ukf.x[0] - s_true) < 0.02
 
 
-# --- consistency ---------------------------------------------------------------------------------------------------------
+# --- consistency ------------------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("tags", [True, False], ids=["encoder+ips+rfid", "encoder+ips"])
 def test_nees_within_chi_square_bounds(loop, tags):
@@ -183,7 +183,7 @@ def test_scale_error_is_learnt_and_encoder_alone_keeps_going(loop):
     assert abs(err) < 3.0 * e.sigma_s_m
 
 
-# --- robustness ----------------------------------------------------------------------------------------------------------
+# --- robustness -------------------------------------------------------------------------------------------------------
 
 def test_ips_outlier_of_one_metre_moves_the_estimate_less_than_a_centimetre(loop):
     profile = TrainProfile().with_changes(ips_outlier=0.0)
@@ -275,7 +275,7 @@ def test_train_moved_by_hand_is_found_again(loop):
     assert abs(along_error_m(loop, est.estimate(t_s).s_m, truth[-1, 1] + 1.2)) < 0.03
 
 
-# --- time: late and reordered data ---------------------------------------------------------------------------------------
+# --- time: late and reordered data ------------------------------------------------------------------------------------
 
 def test_late_ips_fix_is_applied_at_its_own_time(loop):
     """The same fix delivered in time and one second late (stamped with its sampling time) gives the same estimate."""
@@ -296,7 +296,7 @@ def test_late_ips_fix_is_applied_at_its_own_time(loop):
     for estimator, stream in ((a, in_time), (b, late), (c, stamped_late), (d, without)):
         feed(estimator, stream)
     t_s = controller_s(reports[j + 11]["t_ms"])
-    ea, eb, ed = a.estimate(t_s), b.estimate(t_s), d.estimate(t_s)
+    ea, eb, _ = a.estimate(t_s), b.estimate(t_s), d.estimate(t_s)
     assert abs(ea.s_m - eb.s_m) < 1e-9 and abs(ea.sigma_s_m - eb.sigma_s_m) < 1e-12
     assert b.counters()["ips_used"] == d.counters()["ips_used"] + 1      # the late fix was used
     assert c.rejected_ips == b.rejected_ips + 1     # taken at its arrival it would sit 0.5 m behind: gated out
@@ -327,7 +327,7 @@ def test_measurement_older_than_the_history_is_dropped(loop):
     assert est.estimate(t_s) == before
 
 
-# --- interface -----------------------------------------------------------------------------------------------------------
+# --- interface --------------------------------------------------------------------------------------------------------
 
 def _standing_reports(layout, s_m, fixes_xy, t0_ms=BOARD_OFFSET_MS, period_ms=125):
     """Reports of a train standing at `s_m` (odometer 0), one IPS fix each from `fixes_xy` (layout frame, m)."""
@@ -389,7 +389,7 @@ def test_seam_residual_takes_the_short_way(loop):
     assert math.isclose(residual(np.array([loop.length_m - 0.01]), np.array([0.01]))[0], -0.02, abs_tol=1e-12)
 
 
-# --- the paper's Table 1 -------------------------------------------------------------------------------------------------
+# --- the paper's Table 1 ----------------------------------------------------------------------------------------------
 
 def test_fusion_command_reproduces_the_papers_ordering(capsys):
     """Two laps of the paper scenario: dead reckoning > IPS > UKF enc+IPS (at most half of IPS) > UKF enc+IPS+RFID,

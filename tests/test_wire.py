@@ -1,4 +1,5 @@
-"""The wire protocol: authentication, validation with reasons, round trips (CPython; the unix-port run is in test_firmware_mpy)."""
+"""The wire protocol: authentication, validation with reasons, round trips (CPython; the unix-port run is in
+test_firmware_mpy)."""
 
 import hashlib
 import hmac

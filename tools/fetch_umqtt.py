@@ -30,7 +30,7 @@ def _fetch(url):
         with urllib.request.urlopen(url, timeout=30) as resp:
             return resp.read()
     except (OSError, ValueError) as exc:
-        raise SystemExit("fetch_umqtt: could not fetch %s (offline? set a proxy?): %s" % (url, exc))
+        raise SystemExit("fetch_umqtt: could not fetch %s (offline? set a proxy?): %s" % (url, exc)) from None
 
 
 def _download(dest):

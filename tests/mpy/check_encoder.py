@@ -85,7 +85,8 @@ def check_encoder_times_its_newest_edge():
             set_level(pin, level)
         clock.t_us = 15800
         assert enc.count() == 3 and enc.age_us == 800
-        enc._edge(pin)                                          # a late IRQ on an unchanged level: no count, no new time
+        # a late IRQ on an unchanged level: no count, no new time
+        enc._edge(pin)
         clock.t_us = 16000
         assert enc.count() == 3 and enc.age_us == 1000
     finally:

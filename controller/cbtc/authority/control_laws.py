@@ -10,8 +10,6 @@ with both standing at S_min(0) = S_M, eqs. 25-26 keep B exactly at S_min(v_B) wh
 
 import math
 
-from cbtc.authority.rules import minimum_gap_m
-
 
 def sync_deceleration_mps2(v_follower_mps: float, v_leader_mps: float, beta_s_mps2: float) -> float:
     """Eq. 24: the follower's deceleration (m/s^2, positive = braking; negative = it may accelerate) that holds the
@@ -35,7 +33,3 @@ def departure_k_for(accel_max_leader_mps2: float, accel_max_follower_mps2: float
     ratio = accel_max_follower_mps2 / beta_s_mps2
     return max(1e-6, min(1.0, k_leader, ratio * (ratio + 1.0)))
 
-
-def in_sync(gap_m: float, v_follower_mps: float, beta_s_mps2: float, margin_m: float, tolerance_m: float) -> bool:
-    """True when the gap has shrunk to the minimum (within `tolerance_m`): synchronisation control takes over."""
-    return gap_m <= minimum_gap_m(v_follower_mps, beta_s_mps2, margin_m) + tolerance_m

@@ -12,6 +12,8 @@ latency do not move it.
 import math
 from dataclasses import dataclass
 
+from cbtc.railway.physics import braking_distance_m
+
 
 @dataclass(frozen=True)
 class AuthorityParams:
@@ -45,7 +47,8 @@ def moving_block_distance_m(gap_est_m: float, sigma_follower_m: float, sigma_lea
 
 
 def braking_curve_speed_mps(distance_m: float, v_now_mps: float, beta_mps2: float, dead_time_s: float) -> float:
-    """Highest speed (m/s) from which a train stops within `distance_m` at `beta_mps2`, after `dead_time_s` at `v_now_mps`."""
+    """Highest speed (m/s) from which a train stops within `distance_m` at `beta_mps2`, after `dead_time_s` at
+    `v_now_mps`."""
     usable_m = distance_m - v_now_mps * dead_time_s
     if usable_m <= 0.0:
         return 0.0
@@ -56,9 +59,9 @@ def following_reach_m(profile) -> float:
     """Distance (m) within which an end of authority limits a train's speed: its braking distance from line speed,
     the reaction distance, and 5 cm. A train whose authority is shorter is held by the train ahead (it follows)."""
     v = profile.v_max_mps
-    return v * v / (2.0 * profile.beta_s_mps2) + v * profile.reaction_s + 0.05
+    return braking_distance_m(v, profile.beta_s_mps2) + v * profile.reaction_s + 0.05
 
 
 def minimum_gap_m(v_mps: float, beta_s_mps2: float, margin_m: float) -> float:
     """Eq. 23: S_min = S_M + v^2 / (2 beta_s), the brick-wall minimum gap at speed v."""
-    return margin_m + v_mps * v_mps / (2.0 * beta_s_mps2)
+    return margin_m + braking_distance_m(v_mps, beta_s_mps2)

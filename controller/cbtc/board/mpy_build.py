@@ -29,7 +29,8 @@ def mpy_cross_command():
 
 
 def build(out_dir, files=None, arch=None):
-    """Compile `files` (default: the train board's manifest) into `out_dir`; returns the list of relative paths written (.mpy, or .py for SOURCE_ONLY)."""
+    """Compile `files` (default: the train board's manifest) into `out_dir`; returns the list of relative paths written
+    (.mpy, or .py for SOURCE_ONLY)."""
     cmd = mpy_cross_command()
     written = []
     for rel in files or manifest.files("train"):

@@ -44,7 +44,7 @@ class MockClient(BusClient):
         self.on_connect = None        # callable(client), run after reconnect(): resubscribe there
         self._subs = {}               # filter -> callback
         self._connected = False
-        self._conn = 0                # bumped on every (re)connect: deliveries meant for an older connection are dropped
+        self._conn = 0                # bumped on every (re)connect: deliveries for an older connection are dropped
         self._cuts = 0                # bumped on every abrupt loss: messages still on the uplink are dropped
         self._last_up_s = 0.0
         self._last_down_s = 0.0

@@ -145,9 +145,6 @@ class PahoBus(BusClient):
                            f"({self.refusal}); check --username/--password (or CBTC_MQTT_USERNAME/PASSWORD)")
         return self
 
-    def wait_connected(self, timeout_s: float) -> bool:
-        return self._connected.wait(timeout_s)
-
     @property
     def connected(self) -> bool:
         return self._connected.is_set()

@@ -41,8 +41,8 @@ def run_latency(args):
 
 
 def _print(f):
-    print(f"{f['trains']} trains on {f['layout']} through {f['broker']}, reports at {f['report_hz']} Hz a train, controller "
-          f"cycle {f['controller_cycle_hz']} Hz, {f['duration_s']} s measured")
+    print(f"{f['trains']} trains on {f['layout']} through {f['broker']}, reports at {f['report_hz']} Hz a train, "
+          f"controller cycle {f['controller_cycle_hz']} Hz, {f['duration_s']} s measured")
     rows = [("transport_rtt_ms", "transport round trip (uplink + downlink)"),
             ("uplink_ms", "  report published -> controller handles it"),
             ("downlink_ms", "  command published -> train handles it"),

@@ -50,7 +50,8 @@ def register(sub):
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
-    p.add_argument("--plot", metavar="PNG", default="", help="distance-time plot of both systems (the paper's Figure 4)")
+    p.add_argument("--plot", metavar="PNG", default="",
+                   help="distance-time plot of both systems (the paper's Figure 4)")
     p.set_defaults(func=run)
 
 

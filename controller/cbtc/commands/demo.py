@@ -7,14 +7,15 @@ from cbtc.zone.config import paper_scenario
 
 def register(sub):
     p = sub.add_parser("demo", help="run the paper scenario: two virtual trains on the square loop (no hardware)",
-                       description="Two virtual LEGO trains run laps of the paper's square loop under the zone controller, "
-                                   "on the in-process mock broker under a virtual clock.")
+                       description="Two virtual LEGO trains run laps of the paper's square loop under the zone "
+                                   "controller, on the in-process mock broker under a virtual clock.")
     p.add_argument("--layout", default="itb_square", help="layout file or packaged name (default: itb_square)")
     p.add_argument("--laps", type=int, default=5, help="laps each train completes (default: 5)")
     p.add_argument("--seed", type=int, default=0, help="random seed; the same seed gives the same result (default: 0)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--plot", metavar="PNG", default="cbtc-demo.png", help="distance-time plot (default: cbtc-demo.png; '' for none)")
+    p.add_argument("--plot", metavar="PNG", default="cbtc-demo.png",
+                   help="distance-time plot (default: cbtc-demo.png; '' for none)")
     p.set_defaults(func=run)
 
 

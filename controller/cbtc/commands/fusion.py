@@ -1,4 +1,5 @@
-"""`cbtc fusion`: the paper's Table 1 (RMSE of dead reckoning, IPS, UKF encoder+IPS, UKF encoder+IPS+RFID) on its scenario."""
+"""`cbtc fusion`: the paper's Table 1 (RMSE of dead reckoning, IPS, UKF encoder+IPS, UKF encoder+IPS+RFID) on its
+scenario."""
 
 import time
 

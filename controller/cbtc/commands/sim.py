@@ -14,7 +14,8 @@ def register(sub):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
     p.add_argument("--blocks", type=int, default=None, metavar="N",
-                   help="fixed block: N equal blocks instead of the layout's own (a loop needs more blocks than trains)")
+                   help="fixed block: N equal blocks instead of the layout's own "
+                        "(a loop needs more blocks than trains)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", default="", help="write a distance-time plot")

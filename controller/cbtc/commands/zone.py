@@ -52,7 +52,8 @@ def run(args):
     if not args.quiet:
         loop.scheduler.call_every(args.status_period, lambda now_s: _print_status(zc, bus, now_s),
                                   start_s=loop.now_s() + args.status_period)
-    print(f"zone {args.zone_id}: {len(config.trains)} trains {[s.train_id for s in config.trains]} on {layout.name}, broker "
+    ids = [spec.train_id for spec in config.trains]
+    print(f"zone {args.zone_id}: {len(ids)} trains {ids} on {layout.name}, broker "
           f"{bus.host}:{bus.port}, session {zc.session_id}", flush=True)
     loop.install_signal_handlers()
     loop.run(args.duration)

@@ -43,8 +43,3 @@ class BoardClock:
         if self.offset_s is None:
             raise ValueError("BoardClock: no report observed yet")
         return board_ms / 1000.0 + self.offset_s
-
-    def to_board_ms(self, controller_s: float) -> int:
-        if self.offset_s is None:
-            raise ValueError("BoardClock: no report observed yet")
-        return int(round((controller_s - self.offset_s) * 1000.0))

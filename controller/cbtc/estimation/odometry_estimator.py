@@ -1,8 +1,9 @@
 """The simple estimator: odometry anchored on RFID balises, localised and nudged by the IPS.
 
-Kept as the fusion baseline (the UKF in cbtc.estimation.ukf_estimator is the default). Position = anchor + odometer travel since the
-anchor; each balise read re-anchors exactly; an IPS fix projected onto the track corrects the anchor with a scalar
-Kalman gain, after an innovation gate. Uncertainty grows with the distance since the anchor (encoder drift).
+Kept as the fusion baseline (the UKF in cbtc.estimation.ukf_estimator is the default). Position = anchor + odometer
+travel since the anchor; each balise read re-anchors exactly; an IPS fix projected onto the track corrects the anchor
+with a scalar Kalman gain, after an innovation gate. Uncertainty grows with the distance since the anchor (encoder
+drift).
 """
 
 import math
@@ -10,6 +11,7 @@ import math
 from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.railway.balise import BaliseReader
+from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
 
 
@@ -69,7 +71,8 @@ class OdometryEstimator:
         odo_fix_mm = odo_mm - v_mps * age_s * 1000.0
         r_m2 = self.profile.ips_sigma_m ** 2
         if not self.localized:
-            # placed only where `locate_fixes` fixes agree: one fix in a hundred is an outlier (cbtc.estimation.fix_consensus)
+            # placed only where `locate_fixes` fixes agree: one fix in a hundred is an outlier
+            # (cbtc.estimation.fix_consensus)
             # the newest 2 n - 1 fixes, as the UKF takes them: n agreeing ones outvote the rest
             keep = 2 * self.locate_fixes - 1
             self._fix_anchors = (self._fix_anchors + [self.layout.project(x_m, y_m) - odo_fix_mm / 1000.0])[-keep:]
@@ -83,9 +86,7 @@ class OdometryEstimator:
             return
         s_pred, var = self._s_and_var(odo_fix_mm)
         s_meas = self.layout.project(x_m, y_m, s_hint_m=self.layout.wrap(s_pred))
-        innov = self.layout.ahead_m(self.layout.wrap(s_pred), s_meas)
-        if self.layout.closed and innov > self.layout.length_m / 2:
-            innov -= self.layout.length_m
+        innov = circular_offset_m(s_meas, self.layout.wrap(s_pred), self.layout.loop_length_m)
         if innov * innov > self.gate_sigma ** 2 * (var + r_m2):
             self.rejected_ips += 1
             return

@@ -99,7 +99,8 @@ def hx_range(x, layout, radio_x_m, radio_y_m):
 
 
 def along_track_residual(layout):
-    """`a - b` for vectors whose first entry is an along-track position: on a loop it is the short way round the seam."""
+    """`a - b` for vectors whose first entry is an along-track position: on a loop it is the short way round the
+    seam."""
     if not layout.closed:
         return np.subtract
     length_m = layout.length_m
@@ -195,7 +196,8 @@ class TrackUkf:
         return self._gated_update(np.array([tag_s_m, d_m]), R, self._gate2, hx_tag, rfid_offset_m=offset_m)
 
     def update_range(self, radio_x_m: float, radio_y_m: float, range_m: float, sigma_m: float) -> bool:
-        """Fold in a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at a surveyed position; True when used."""
+        """Fold in a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at a surveyed position; True when
+        used."""
         self.ukf.residual_z = np.subtract
         return self._gated_update(np.array([range_m]), np.array([[sigma_m ** 2]]), self._gate1, hx_range,
                                   layout=self.layout, radio_x_m=radio_x_m, radio_y_m=radio_y_m)

@@ -1,4 +1,5 @@
-"""The default position estimator: a track-constrained UKF per train on encoder, IPS and RFID (cbtc.estimation.track_ukf).
+"""The default position estimator: a track-constrained UKF per train on encoder, IPS and RFID
+(cbtc.estimation.track_ukf).
 
 Same interface as cbtc.estimation.odometry_estimator.OdometryEstimator: `on_report(report, board_clock)` and
 `estimate(now_s) -> Estimate | None`.
@@ -38,7 +39,8 @@ from cbtc.railway.ips_frame import ips_to_track
 class UkfParams:
     """Filter settings that are not sensor properties (those come from the TrainProfile); see docs/fusion.md."""
 
-    accel_psd_m2ps3: float = 0.02     # white-acceleration PSD: ~0.3 m/s^2 changes of acceleration per motor time constant
+    # white-acceleration PSD: ~0.3 m/s^2 changes of acceleration per motor time constant
+    accel_psd_m2ps3: float = 0.02
     scale_sigma: float = 0.03         # prior 1-sigma of the encoder scale error; 0 leaves it out of the state
     scale_walk_per_sqrt_m: float = 1e-3  # scale error drift per sqrt(metre) travelled (wear, dirt, load)
     slip_length_m: float = 0.02       # distance over which wheel slip is correlated (a wheel's roll per loop tick)
@@ -139,7 +141,7 @@ class UkfEstimator:
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
 
-    # --- counters of the measurements in use -------------------------------------------------------------------------
+    # --- counters of the measurements in use --------------------------------------------------------------------------
 
     @property
     def _newest(self):
@@ -181,7 +183,7 @@ class UkfEstimator:
                 "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
                 **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
-    # --- input ---------------------------------------------------------------------------------------------------------
+    # --- input --------------------------------------------------------------------------------------------------------
 
     def on_report(self, report: dict, board_clock) -> None:
         """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
@@ -219,7 +221,7 @@ class UkfEstimator:
         self._replay(start)
         self._trim()
 
-    # --- the filter ----------------------------------------------------------------------------------------------------
+    # --- the filter ---------------------------------------------------------------------------------------------------
 
     def _replay(self, start):
         state = self._states[start - 1] if start > 0 else self._base
@@ -341,7 +343,7 @@ class UkfEstimator:
         v_mps = (after.data[0] - before.data[0]) / (after.t_s - before.t_s)
         return d_m, v_mps
 
-    # --- output --------------------------------------------------------------------------------------------------------
+    # --- output -------------------------------------------------------------------------------------------------------
 
     def estimate(self, now_s: float):
         """Head position, speed and their 1-sigma at controller time `now_s`, predicted from the newest data."""

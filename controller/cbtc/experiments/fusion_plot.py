@@ -1,4 +1,5 @@
-"""The paper's Figure 3 for one train: encoder prediction, IPS and the UKF against the truth, in the plane and over time."""
+"""The paper's Figure 3 for one train: encoder prediction, IPS and the UKF against the truth, in the plane and over
+time."""
 
 import matplotlib
 

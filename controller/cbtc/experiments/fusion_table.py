@@ -177,7 +177,8 @@ def method_traces(layout, record, ukf_params=None):
 
 
 def fusion_table(layout, records, ukf_params=None):
-    """(rows, traces): one row per method with per-train and mean RMSE (cm) beside the paper's; traces[train][method]."""
+    """(rows, traces): one row per method with per-train and mean RMSE (cm) beside the paper's;
+    traces[train][method]."""
     traces = {rec.train_id: method_traces(layout, rec, ukf_params) for rec in records}
     rows = []
     for key, label, paper_x, paper_y in METHODS:

@@ -1,12 +1,12 @@
 """The faulty-leader scenario: the zone controller's picture of the leader is wrong; the onboard guard alone saves it.
 
-Paper scenario (train A ahead of B on the square loop, station stops). Train A's sensors fail together in the
-dangerous direction: its encoder counts run `encoder_fault` times fast and its IPS places it `ips_offset_m` ahead of
-where it stands. The controller then believes A is well ahead, so B's movement authority runs past A's real tail,
-and when A stops at a station B runs into it. With train-to-train ranging on (cbtc.ranging.transponder, cbtc.sim.ranging),
-B's OnboardUnit measures the true gap and brakes on its own (the collision guard in firmware/obu.py); the zone
-controller is told not to use the measured gap for authority here (it only raises its "picture disagrees" alarm), so
-the guard alone is what prevents the collision.
+Paper scenario (train A ahead of B on the square loop, station stops). Train A's sensors fail together in the dangerous
+direction: its encoder counts run `encoder_fault` times fast and its IPS places it `ips_offset_m` ahead of where it
+stands. The controller then believes A is well ahead, so B's movement authority runs past A's real tail, and when A
+stops at a station B runs into it. With train-to-train ranging on (cbtc.ranging.transponder, cbtc.sim.ranging), B's
+OnboardUnit measures the true gap and brakes on its own (the collision guard in firmware/obu.py); the zone controller is
+told not to use the measured gap for authority here (it only raises its "picture disagrees" alarm), so the guard alone
+is what prevents the collision.
 """
 
 from cbtc.layout_files import load_layout

@@ -8,6 +8,7 @@ import numpy as np
 
 from cbtc.authority.rules import AuthorityParams, minimum_gap_m
 from cbtc.firmware import obu
+from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import ScenarioConfig, TrainSpec, paper_scenario
@@ -152,7 +153,7 @@ def _overhead_budget(config, profile, basis, steady, t, cseq, eoa_ahead_m, leade
     k_sigma_m = p.k_sigma * np.array([basis[int(c)][1] for c in cseq[steady]])
     moved_m = leader_d_m[steady] - np.interp(data_t, t, leader_d_m)
     window_m = obu.DEFAULTS["stop_window_mm"] / 1000.0
-    braking_m = v_b[steady] ** 2 / (2.0 * profile.beta_s_mps2)
+    braking_m = braking_distance_m(v_b[steady], profile.beta_s_mps2)
     inside_m = eoa_ahead_m[steady] - window_m - braking_m
     # gap = moved + (tail at data time - end of authority) + (end of authority - head)
     estimates_m = gap[steady] - moved_m - eoa_ahead_m[steady] - p.margin_m - k_sigma_m

@@ -1,4 +1,5 @@
-"""Latency of the live system: report -> command round trips through a real MQTT broker, and the controller's compute time.
+"""Latency of the live system: report -> command round trips through a real MQTT broker, and the controller's
+compute time.
 
 The zone controller runs in this process, N virtual trains in a second one (each train its own MQTT connection,
 reporting at the firmware's rate, 20 Hz, or 50 Hz when the controller asks a followed train for fast reports within
@@ -177,7 +178,8 @@ def _fleet(layout_name, n_trains, seed):
 
 
 def run_latency(args) -> dict:
-    """The figures of one latency measurement (the options of `cbtc bench latency`), on an embedded broker or `args.broker`."""
+    """The figures of one latency measurement (the options of `cbtc bench latency`), on an embedded broker or
+    `args.broker`."""
     layout, config = _fleet(args.layout, args.trains, args.seed)
     broker = None
     if args.broker == "embedded":

@@ -21,6 +21,14 @@ def circular_offset_m(a_m, b_m, length_m=None):
     return d
 
 
+def forward_m(s_from_m, s_to_m, length_m=None):
+    """Distance (m) going forward from `s_from_m` to `s_to_m`: in [0, length) on a loop of `length_m`, to - from on
+    an open line (None)."""
+    if length_m:
+        return (s_to_m - s_from_m) % length_m
+    return s_to_m - s_from_m
+
+
 def _runs(segments):
     """Merge consecutive segments of equal curvature into runs [curvature_per_m, length_m] (0 per m on a straight)."""
     runs = []

@@ -7,7 +7,7 @@ cbtc.layout_files and checked by cbtc.railway.layout_dict; the format is describ
 from dataclasses import dataclass
 
 from cbtc.errors import LayoutError
-from cbtc.railway.geometry import Path
+from cbtc.railway.geometry import Path, forward_m
 
 
 @dataclass(frozen=True)
@@ -63,9 +63,7 @@ class Layout:
 
     def ahead_m(self, s_from_m, s_to_m):
         """Distance (m) going forward from `s_from_m` to `s_to_m`: in [0, length) on a loop, to - from on a line."""
-        if self.closed:
-            return (s_to_m - s_from_m) % self.length_m
-        return s_to_m - s_from_m
+        return forward_m(s_from_m, s_to_m, self.loop_length_m)
 
     def pose(self, s_m):
         """(x_m, y_m, heading_rad) at `s_m` (float or array; wraps on a loop)."""
@@ -104,5 +102,5 @@ class Layout:
 
 def span_on_loop_m(start_m, end_m, length_m):
     """Length (m) of the loop block [start, end): end <= start wraps past the seam; [0, length) is the whole loop."""
-    span = (end_m - start_m) % length_m
+    span = forward_m(start_m, end_m, length_m)
     return length_m if span == 0.0 and end_m != start_m else span

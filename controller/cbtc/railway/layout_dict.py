@@ -8,7 +8,7 @@ import math
 import os
 
 from cbtc.errors import LayoutError
-from cbtc.railway.geometry import Path
+from cbtc.railway.geometry import Path, forward_m
 from cbtc.railway.layout import Block, IpsFrame, Layout, Station, Tag, span_on_loop_m
 
 STUD_M = 0.008
@@ -256,7 +256,7 @@ def _blocks(r, spec, length, closed):
         j, nxt = ordered[0] if last else ordered[n + 1]
         if closed:
             span_m = span_on_loop_m(b.start_m, b.end_m, length)
-            room_m = (nxt.start_m - b.start_m) % length if j != i else length   # up to the next block's start
+            room_m = forward_m(b.start_m, nxt.start_m, length) if j != i else length   # up to the next block's start
         else:
             span_m, room_m = b.end_m - b.start_m, nxt.start_m - b.start_m
         gap_m = room_m - span_m

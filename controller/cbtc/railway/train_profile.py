@@ -1,6 +1,6 @@
 """Train parameters: one profile per train, with LEGO-realistic defaults (SI units)."""
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 
 from cbtc.errors import ConfigError
 
@@ -57,9 +57,6 @@ class TrainProfile:
         if unknown:
             raise ConfigError(f"train profile: unknown keys {sorted(unknown)}; known: {[f.name for f in fields(self)]}")
         return replace(self, **changes)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
     def obu_config(self) -> dict:
         """The OnboardUnit configuration (integer mm / ms) that matches this profile."""

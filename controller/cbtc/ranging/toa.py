@@ -62,7 +62,8 @@ def survey_radios(layout, spacing_m, lateral_m=0.15, first_m=0.0):
     index = 0
     while s_m < layout.length_m:
         x, y, heading = (float(v) for v in layout.pose(s_m))
-        radios.append(WaysideRadio(f"W{index + 1}", x - lateral_m * math.sin(heading), y + lateral_m * math.cos(heading)))
+        radios.append(WaysideRadio(f"W{index + 1}", x - lateral_m * math.sin(heading),
+                                   y + lateral_m * math.cos(heading)))
         s_m += spacing_m
         index += 1
     return radios

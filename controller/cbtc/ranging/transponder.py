@@ -242,7 +242,8 @@ class RangingSensor:
                  exchanges=10, max_range_m=5.0, calibration_trials=400, wave_mps=C_MPS):
         if chip_rate_hz <= 0 or exchanges < 1 or max_range_m <= 0 or not 0 <= reflection_prob < 1:
             raise ConfigError("ranging sensor: chip_rate_hz > 0, exchanges >= 1, max_range_m > 0 and reflection_prob "
-                              f"in [0, 1) are needed; got {chip_rate_hz}, {exchanges}, {max_range_m}, {reflection_prob}")
+                              f"in [0, 1) are needed; got {chip_rate_hz}, {exchanges}, {max_range_m}, "
+                              f"{reflection_prob}")
         self.chip_m = chip_length_m(chip_rate_hz, wave_mps)
         self.exchanges = int(exchanges)
         self.max_range_m = max_range_m

@@ -1,8 +1,8 @@
 """The wayside-ranging row of the fusion table: UKF on encoder + IPS + two-way TOA ranges to wayside radios (seed 000).
 
 The recorded reports carry no ranges (the boards have no wayside radio yet), so the replay synthesises one exchange per
-report from the truth at the report's sampling instant, with the nearest surveyed radio (cbtc.ranging.toa), and hands it to
-the estimator at that board time. Tags are stripped: the row shows what ranging adds to encoder + IPS.
+report from the truth at the report's sampling instant, with the nearest surveyed radio (cbtc.ranging.toa), and hands it
+to the estimator at that board time. Tags are stripped: the row shows what ranging adds to encoder + IPS.
 """
 
 import numpy as np

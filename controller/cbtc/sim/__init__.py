@@ -1,1 +1,2 @@
-"""The simulated world: virtual trains, simulated drivers, scenarios and their recorder (the only place truth is read)."""
+"""The simulated world: virtual trains, simulated drivers, scenarios and their recorder (the only place truth is
+read)."""

@@ -1,9 +1,9 @@
 """The simulated train-to-train ranging driver: the true gap to the train ahead, through the RangingSensor model.
 
-Same duck type as a board's ranging driver (`poll(now_ms) -> gap_mm | None`), read by the OnboardUnit's collision
-guard. A new averaged measurement (cbtc.ranging.transponder.RangingSensor: 100 ms running mean of coded two-way exchanges)
-is ready every `period_ms`; between them `poll` returns None. The gap is measured from the truth, so the guard sees
-where the leader really is, whatever the zone controller believes.
+Same duck type as a board's ranging driver (`poll(now_ms) -> gap_mm | None`), read by the OnboardUnit's collision guard.
+A new averaged measurement (cbtc.ranging.transponder.RangingSensor: 100 ms running mean of coded two-way exchanges) is
+ready every `period_ms`; between them `poll` returns None. The gap is measured from the truth, so the guard sees where
+the leader really is, whatever the zone controller believes.
 """
 
 from cbtc.ranging.transponder import RangingSensor

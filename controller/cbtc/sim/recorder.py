@@ -6,6 +6,7 @@ import numpy as np
 
 from cbtc.authority.rules import following_reach_m
 from cbtc.protocol import wire
+from cbtc.railway.geometry import circular_offset_m
 from cbtc.sim.truth import head_inside, train_ahead
 from cbtc.zone.config import train_key
 
@@ -103,10 +104,7 @@ class Recorder:
         errs = []
         for s_est, s_true in zip(self.est_s_m[i], self.head_s_m[i]):
             if s_est == s_est:
-                e = self.layout.ahead_m(s_true, s_est)
-                if self.layout.closed and e > self.layout.length_m / 2:
-                    e -= self.layout.length_m
-                errs.append(e)
+                errs.append(circular_offset_m(s_est, s_true, self.layout.loop_length_m))
         if not errs:
             return None
         arr = np.asarray(errs)

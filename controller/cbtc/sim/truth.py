@@ -22,10 +22,10 @@ def head_inside(layout, head_s_m, ahead_tail_s_m, ahead_length_m) -> bool:
 
 
 class TruthMonitor:
-    """Collisions counted from the trains' true positions, as the recorder of a simulated run does: a collision starts when
-    a train's head enters the span of the train ahead. And how far each board's odometer ever moved past the end of
-    authority it held at the time (`moved_past_eoa_mm`): an end of authority set behind a standing train (an
-    estimate corrected by a few mm) is no overrun unless the train then moves."""
+    """Collisions counted from the trains' true positions, as the recorder of a simulated run counts them: a collision
+    starts when a train's head enters the span of the train ahead. And how far each board's odometer ever moved past
+    the end of authority it held at the time (`moved_past_eoa_mm`): an end of authority set behind a standing train
+    (an estimate corrected by a few mm) is no overrun unless the train then moves."""
 
     def __init__(self, layout, trains):
         self.layout = layout

@@ -54,7 +54,8 @@ def paper_scenario(layout, seed=0, laps=5, duration_s=200.0, **overrides) -> Sce
     names = {st.name for st in layout.stations}
     for needed in ("main", "A", "B"):
         if needed not in names:
-            raise ConfigError(f"the paper scenario needs stations main, A and B; layout {layout.name} has {sorted(names)}")
+            raise ConfigError(f"the paper scenario needs stations main, A and B; layout {layout.name} has "
+                              f"{sorted(names)}")
     profile = TrainProfile()
     params = overrides.get("params", AuthorityParams())
     main_s = layout.station("main").s_m

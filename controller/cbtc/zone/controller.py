@@ -21,6 +21,7 @@ from cbtc.authority.rules import AuthorityParams, following_reach_m
 from cbtc.estimation.estimate import BoardClock
 from cbtc.firmware import obu
 from cbtc.protocol import wire
+from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 
 log = logging.getLogger("cbtc.zone")
@@ -279,7 +280,7 @@ class ZoneController:
         if safe_m is None:
             # no picture of every train: stop now at service rate; the authority never extends
             v_mps = max(0.0, report["v_mmps"] / 1000.0)
-            brake_m = v_mps * state.setup.profile.reaction_s + v_mps * v_mps / (2.0 * dec_mps2)
+            brake_m = v_mps * state.setup.profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
             eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
         else:
             eoa_mm = report["odo_mm"] + int(safe_m * scale_low * 1000.0)   # metres along the track into odometer mm
