@@ -1,20 +1,12 @@
 """The OnboardUnit: the train's loop logic, written once for the real board and for every virtual train.
 
-Drivers are injected (encoder, ips, rfid, motor: see firmware/drivers/ and the simulator's drivers), and so is
-`publish(topic, payload)`. The shell calls `step(now_ms)` every few ms and `on_message(topic, payload, now_ms)` for
-each MQTT message; `now_ms` is a monotonic, non-wrapping board time in ms. Nothing here reads a clock or a socket.
-
-What one step does: sample the encoder, the IPS and the RFID reader; supervise the movement authority (the end of
-authority is a value of the train's own odometer, so it holds between commands); ramp a speed reference under the
-service braking curve to that end and to the stop target (a station: a service stop, not supervised by the trip
-curve); run the speed PI loop to a motor duty; report at the rate the controller asks for (or `report_ms`). When the
-newest valid command has expired, the target speed is zero: the train brakes to a stop and stays braked. If the speed
-ever exceeds the braking curve by a margin, the unit trips: motor brake until standstill.
-
-Collision guard (optional `ranging` driver, `poll(now_ms) -> gap_mm | None`: the coded train-to-train ranging to the
-train ahead): whenever a fresh measured gap is shorter than the emergency braking distance at the current speed plus
-the reaction distance plus `guard_margin_mm`, the unit brakes (mode "trip"), whatever its commands say, and reports
-the "guard" fault while that holds. It is independent of the zone controller's picture of the trains.
+Drivers (encoder, ips, rfid, motor, an optional ranging driver) and `publish(topic, payload)` are injected; the shell
+calls `step(now_ms)` every few ms and `on_message(topic, payload, now_ms)` for each MQTT message, `now_ms` being a
+monotonic board time. Nothing here reads a clock or a socket. A step samples the sensors, supervises the end of
+authority (a value of the train's own odometer, so it holds between commands), rides a speed reference under the
+service braking curve to it and to the stop target, runs the speed PI loop and reports. An expired command means a
+target speed of zero; a speed over the braking curve by a margin trips the motor brake, and so does a fresh measured
+gap to the train ahead shorter than the emergency braking distance (the collision guard, fault "guard").
 """
 
 from math import sqrt
@@ -59,9 +51,8 @@ _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops
 
 
 class OnboardUnit:
-    # Fields that keep these starting values until something rare happens (a rejected command, a failed sensor, a
-    # ranging driver, a guard trip) live on the class: an instance pays for them only once it changes them, which
-    # keeps a board's OnboardUnit small. All are immutable, so instances never share state through them.
+    # Fields that keep these values until something rare happens (a rejected command, a failed sensor, a guard trip)
+    # live on the class, so an instance pays for them only once it changes them; all are immutable.
     ranging = None
     rejected = 0
     last_reject = ""
@@ -220,10 +211,10 @@ class OnboardUnit:
             except Exception as exc:
                 self._sensor_failed("ranging", exc)
         # speed (the M/T method): the counts between the newest edge and the newest edge at least a speed window
-        # before it that has another count, over the exact time between the two. An encoder that times its edges says
-        # how long before its count was read the newest edge came (`age_us`); one that does not stands each new count
-        # at its sample (age 0). A count keeps its edge's time (at most a second old: spans never wrap). No such edge
-        # in the ring: standing. Integers throughout: no float for the heap to hold, small ints on a 32-bit board
+        # before it that has another count, over the exact time between the two. An encoder that times its edges gives
+        # the newest edge's age at the read (`age_us`); one that does not stands each count at its sample (age 0). A
+        # count keeps its edge's time (at most a second old: spans never wrap); no such edge in the ring: standing.
+        # Integers throughout: no float for the heap to hold, small ints on a 32-bit board
         i = self._ring_i
         now_us = (now_ms & 0x3FFFF) * 1000
         edge_us = self._ring_t[i - 1]
@@ -325,9 +316,8 @@ class OnboardUnit:
             self._brake()
             return
         self.mode = mode
-        # the speed reference ramps to the commanded speed at the commanded rates, and rides the service curve when
-        # that is lower: riding the curve to an end of authority that advances with the train ahead decelerates the
-        # train by exactly Takagi's synchronisation law, beta_s (v - v_ahead) / v (docs/protocol.md)
+        # the speed reference ramps to the commanded speed at the commanded rates and rides the service curve where it
+        # is lower: behind an advancing end of authority that is Takagi's law beta_s (v - v_ahead) / v (protocol.md)
         v_before = self.v_ref_mmps
         if v_cap > v_before:
             self.v_ref_mmps = min(v_cap, v_before + acc * dt_s)
@@ -342,11 +332,9 @@ class OnboardUnit:
         # the measured speed is the mean between two edges at least a speed window apart, so it lags about half a
         # window: compare it with the reference of then (ramps would otherwise wind the integral up and overshoot)
         error = self.v_ref_mmps - a_ref * cfg["speed_window_ms"] / 2000.0 - self.v_mmps
-        # the integral learns the steady offset (friction, load, a tired battery) except in a sustained ramp (the
-        # reference's slope, low-passed over 0.1 s, beyond 200 mm/s^2): a traction-limited start would wind it up.
-        # It learns while the reference steps up and down with each end of authority behind a moving train: a loop
-        # that learnt only at a flat reference never learnt there and rode 15 mm/s slow. (Learning on falling passes
-        # alone biased it upwards: trains following a leader that reported every 50-100 ms tripped.)
+        # the integral learns the steady offset (friction, load, a tired battery), also while the reference steps with
+        # each end of authority behind a moving train, but not in a sustained ramp (the reference's slope, low-passed
+        # over 0.1 s, beyond 200 mm/s^2), where a traction-limited start would wind it up
         self._a_lp += (a_ref - self._a_lp) * dt_s / (dt_s + 0.1)
         if -200.0 < self._a_lp < 200.0:
             self._integral += error * dt_s
