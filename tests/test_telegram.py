@@ -15,7 +15,7 @@ BALISE = telegram.balise_payload(0x04A7, 1234567, 0x05)
 
 def test_frame_layout_and_clean_decode():
     frame = telegram.encode(BALISE)
-    # 13 sync + 6 bytes * 16 + CRC 16 + parity 1, as docs/seed_systems.md says
+    # 13 sync + 6 bytes * 16 + CRC 16 + parity 1, as docs/source_systems.md says
     assert len(frame) == telegram.frame_bits(6) == 126
     assert tuple(frame[:13]) == telegram.SYNC
     assert telegram.decode(frame) == (BALISE, "ok")

@@ -2,12 +2,12 @@
 
 Made to be fair, not a straw man: the same trains, stops, safety margin and onboard supervision as moving block; only
 the authority differs. A train may run to the entry of the first occupied block ahead (its signal), less the safety
-margin; speed codes descend behind an occupied block as in seed 000 (the block just behind an occupied block gives the
-lowest code, restricted speed and a stop at its end; the next one back the approach code; further back line speed). Each
-code reaches the train as a Hamming-coded telegram through a noisy channel (cbtc.authority.speed_code_channel, seed
-003); a rejected telegram gives the lowest code. Occupancy comes from track circuits, which detect any part of a train
-in a block: in simulation from the trains' true spans (`track_circuits`), otherwise from the estimates widened by k
-sigma.
+margin; speed codes descend behind an occupied block as in the BART radio ATC (the block just behind an occupied block
+gives the lowest code, restricted speed and a stop at its end; the next one back the approach code; further back line
+speed). Each code reaches the train as a Hamming-coded telegram through a noisy channel
+(cbtc.authority.speed_code_channel, seed 003); a rejected telegram gives the lowest code. Occupancy comes from track
+circuits, which detect any part of a train in a block: in simulation from the trains' true spans (`track_circuits`),
+otherwise from the estimates widened by k sigma.
 """
 
 from cbtc.authority.rules import AuthorityParams

@@ -1,4 +1,5 @@
-"""The track circuit's speed-code channel: seed 000's fixed-block speed codes sent as seed 003's telegrams.
+"""The track circuit's speed-code channel: the BART radio ATC's fixed-block speed codes sent as
+Hill's Hamming-coded telegrams.
 
 The wayside encodes each code as a Hamming-coded telegram (firmware/telegram.py: sync, SECDED nibbles, CRC-8,
 final parity) naming the block it is for; the rails flip each bit independently with probability `ber`; the train

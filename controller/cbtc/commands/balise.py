@@ -1,4 +1,4 @@
-"""`cbtc balise`: the telegrams that make RFID tags into balises carrying their own position (seed 003 coding).
+"""`cbtc balise`: the telegrams that make RFID tags into balises carrying their own position (Hill's telegram coding).
 
 `cbtc balise image --layout FILE` prints, for every tag of a layout, the 16 bytes to write into its data pages 4-7
 (NTAG213/215 or MIFARE Ultralight sticker); `cbtc balise read HEX` decodes what a board reported.

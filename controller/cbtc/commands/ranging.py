@@ -9,7 +9,8 @@ def register(sub):
     p = sub.add_parser("ranging", help="coded train-to-train ranging, BER of the data channel, telegram coding",
                        description="Ranging accuracy against chip length and SNR (two-way exchanges, two other "
                                    "trains' codes present), the SNR threshold of the receiver, the BER of the "
-                                   "31-chip data channel beside theory and seed 001, and telegram statistics "
+                                   "31-chip data channel beside theory and the CODIBDT coded radar, and telegram "
+                                   "statistics "
                                    "under random bit errors.")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--chip-rate", type=float, default=1e9, metavar="HZ",
@@ -40,9 +41,9 @@ def run(args):
     print("\nBER of the 31-chip DSSS data channel (BPSK, AWGN, SNR per chip); theory Q(sqrt(2 * 31 * Ec/N0))")
     print(format_table([{**r, "simulated": None if r["simulated"] is None else f"{r['simulated']:.2e}",
                          "theory": f"{r['theory']:.2e}",
-                         "seed_001": None if r["seed_001"] is None else f"{r['seed_001']:.0e}"} for r in result["ber"]],
+                         "codibdt": None if r["codibdt"] is None else f"{r['codibdt']:.0e}"} for r in result["ber"]],
                        [("snr_db", "SNR dB"), ("simulated", "simulated"), ("errors", "errors"), ("bits", "bits"),
-                        ("theory", "theory"), ("seed_001", "seed 001")]))
+                        ("theory", "theory"), ("codibdt", "CODIBDT")]))
     print("(- : too deep to simulate in seconds; theory only)")
     print("\nbalise telegrams (126 bits) under random bit errors, per 10k")
     print(format_table(result["telegrams"], [("ber", "bit error rate"), ("ok", "ok"), ("corrected", "corrected"),

@@ -10,7 +10,7 @@ from cbtc.ranging import transponder as tp
 CODE_BITS = (5, 7, 10)                 # chip lengths 31, 127, 1023
 SNRS_DB = (-20.0, -10.0, 0.0, 10.0)
 BER_SNRS_DB = tuple(float(s) for s in range(-10, 5, 2))
-SEED_001_POINT = (-2.0, 1e-5)          # seed 001: BER 1e-5 at -2 dB SNR
+CODIBDT_POINT = (-2.0, 1e-5)          # the CODIBDT coded radar: BER 1e-5 at -2 dB SNR
 
 
 def accuracy_table(rng, chip_rate_hz, trials):
@@ -56,7 +56,7 @@ def ber_table(rng):
         else:
             errors, bits, simulated = None, None, None   # too deep to resolve in a few seconds: theory only
         rows.append({"snr_db": snr, "simulated": simulated, "errors": errors, "bits": bits, "theory": theory,
-                     "seed_001": SEED_001_POINT[1] if snr == SEED_001_POINT[0] else None})
+                     "codibdt": CODIBDT_POINT[1] if snr == CODIBDT_POINT[0] else None})
     return rows
 
 

@@ -1,4 +1,5 @@
-"""Balises that carry their own position: an RFID tag whose data holds a Hamming-coded telegram (seed 003).
+"""Balises that carry their own position: an RFID tag whose data holds a Hamming-coded telegram
+(Hill's track-circuit telegram coding).
 
 The telegram (firmware/telegram.py, balise profile: tag id, position along the track in mm, flags) is written once
 into the tag's 16 data bytes (NTAG/Ultralight pages 4-7, `cbtc balise image` prints them); the board reads them with

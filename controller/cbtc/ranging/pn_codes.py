@@ -1,4 +1,5 @@
-"""Pseudo-noise codes for coded ranging and data (seeds 001 and 004): LFSR m-sequences, Gold codes, spreading.
+"""Pseudo-noise codes for coded ranging and data (the CODIBDT and FOLOMIE radars): LFSR m-sequences, Gold codes,
+spreading.
 
 - `mseq(n_bits, taps)`: the maximal-length sequence (length 2^n - 1) of a Fibonacci LFSR, bits 0/1. Its periodic
   autocorrelation in +-1 form is two-valued: N at zero shift, -1 at every other shift.

@@ -1,4 +1,5 @@
-"""Wayside radio ranging by two-way time of arrival (seed 000): radios at surveyed positions, ranges into the UKF.
+"""Wayside radio ranging by two-way time of arrival (the BART radio ATC): radios at surveyed positions, ranges into
+the UKF.
 
 Two-way exchange between the train radio and a wayside radio, each stamping on its own free-running clock:
 t1 the train sends (train clock), t2 the wayside radio receives (wayside clock), t3 it replies (wayside clock),

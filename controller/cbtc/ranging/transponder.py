@@ -1,13 +1,14 @@
-"""Coded train-to-train ranging (seeds 001 and 004): correlation receiver, two-way exchange, reply data, sensor model.
+"""Coded train-to-train ranging (the CODIBDT and FOLOMIE radars): correlation receiver, two-way exchange, reply
+data, sensor model.
 
 Baseband model, one sample per chip (integrate-and-dump over rectangular chips of unit energy). SNR is per chip,
 Ec/N0: the noise of a real sample has variance N0/2 = 1 / (2 SNR). A signal delayed by k + f chips (0 <= f < 1)
 puts (1 - f) of chip j and f of chip j - 1 into each sample, so the periodic correlation with the code is a triangle
 around the true delay, and the sub-chip delay is read from the peak and its larger neighbour.
 
-Two-way exchange (seed 004's master/slave transponder): the follower (master) sends its ranging code; the leader
-(slave) finds the code's arrival by correlation, waits a fixed turnaround, and replies with a different code of the
-same Gold family; the master finds the reply's arrival and computes
+Two-way exchange (the FOLOMIE radar's master/slave transponder): the follower (master) sends its ranging code; the
+leader (slave) finds the code's arrival by correlation, waits a fixed turnaround, and replies with a different code of
+the same Gold family; the master finds the reply's arrival and computes
 
     range = c * (round trip - turnaround) / 2       (modulo the code period; errors of both receivers halve)
 
@@ -15,8 +16,8 @@ Using a different code for the reply is what makes the master deaf to the radar 
 and to the other trains' codes (bounded Gold cross-correlation); a multipath copy of the reply can still win at low
 SNR: that is a false peak, later than the truth. Seed 004 then averages the exchanges over 100 ms (`RunningMean`).
 
-The reply carries the responder's id and status bits spread by a 31-chip code (seed 001's C31): `reply_chips` and
-`read_reply`; `ber_dsss` is that data channel's bit error rate beside theory.
+The reply carries the responder's id and status bits spread by a 31-chip code (the CODIBDT radar's C31): `reply_chips`
+and `read_reply`; `ber_dsss` is that data channel's bit error rate beside theory.
 
 `RangingSensor` is the fast model the simulator calls at 10-20 Hz: its error distribution is measured once, at
 construction, by running this very receiver (cached per parameter set), not derived per call.
@@ -196,7 +197,7 @@ def ber_dsss(snr_db, n_bits_total, rng, n_bits=DATA_BITS, chunk=100_000):
     return errors, done
 
 
-# --- running mean (seed 004: 100 ms) -------------------------------------------------------------------------------
+# --- running mean (the FOLOMIE tunnel radar: 100 ms) ------------------------------------------------------------------
 
 class RunningMean:
     """Mean of the values added within the last `window_s` seconds; time is passed in."""

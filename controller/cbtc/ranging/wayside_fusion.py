@@ -1,4 +1,5 @@
-"""The wayside-ranging row of the fusion table: UKF on encoder + IPS + two-way TOA ranges to wayside radios (seed 000).
+"""The wayside-ranging row of the fusion table: UKF on encoder + IPS + two-way TOA ranges to wayside radios
+(the BART radio ATC).
 
 The recorded reports carry no ranges (the boards have no wayside radio yet), so the replay synthesises one exchange per
 report from the truth at the report's sampling instant, with the nearest surveyed radio (cbtc.ranging.toa), and hands it
