@@ -1,4 +1,4 @@
-"""Whole scenarios through the command line and the experiment runners: the issue's acceptance figures, seeded."""
+"""Whole scenarios through the command line and the experiment runners: the figures of README and docs, seeded."""
 
 import json
 

@@ -1,0 +1,56 @@
+"""docs/protocol.md and the wire module say the same: the fields of a report and a command, the modes, the faults,
+the topics and the payload limit."""
+
+import json
+import os
+import re
+
+from cbtc.protocol import wire
+
+DOC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs", "protocol.md")
+KEY = b"0123456789abcdef"
+
+
+def _section(text, heading):
+    start = text.index(heading)
+    end = text.find("\n#", start + len(heading))
+    return text[start:end if end >= 0 else None]
+
+
+def _table_fields(section):
+    """The backticked names in the first column of a markdown table."""
+    names = set()
+    for line in section.splitlines():
+        if line.startswith("| `"):
+            names.update(re.findall(r"`([a-z_]+)`", line.split("|")[1]))
+    return names
+
+
+def _body(payload):
+    return json.loads(payload[:payload.rindex(b"#")])
+
+
+def test_report_table_lists_exactly_the_report_fields():
+    doc = open(DOC).read()
+    payload = wire.encode_report(KEY, "A", 1, 100, 5, 0, 0, "run", -1, None, [], [], rng=[90, 400])
+    assert _table_fields(_section(doc, "### Report")) == set(_body(payload))
+
+
+def test_command_table_lists_exactly_the_command_fields():
+    doc = open(DOC).read()
+    payload = wire.encode_command(KEY, "A", 1, 7, 1, 300, 1000, 800, 600, 800)
+    assert _table_fields(_section(doc, "### Command")) == set(_body(payload))
+
+
+def test_modes_faults_topics_and_limits_match():
+    doc = open(DOC).read()
+    report = _section(doc, "### Report")
+    mode_row = next(line for line in report.splitlines() if line.startswith("| `mode`"))
+    assert set(re.findall(r"`([a-z_]+)`", mode_row.split("|")[3])) == set(wire.MODES)
+    fault_row = next(line for line in report.splitlines() if line.startswith("| `flt`"))
+    assert set(re.findall(r"`([a-z_]+)`", fault_row.split("|")[3])) == set(wire.FAULTS)
+    for topic in (wire.topic_report("<id>"), wire.topic_command("<id>"), wire.topic_status("<id>"),
+                  wire.topic_zone_status("<zone>")):
+        assert f"`{topic}`" in doc
+    assert f"Payloads over {wire._MAX_PAYLOAD} bytes are refused" in doc
+    assert wire.decode_report.__module__.endswith("wire_zc") and wire.VERSION == 1 and "(version 1)" in doc
