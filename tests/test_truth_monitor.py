@@ -28,3 +28,17 @@ def test_moving_past_the_end_of_authority_is_counted_and_a_limit_set_behind_a_st
     train.obu.eoa_mm, train.obu.odo_mm = 160, 165   # past a limit it held while moving: the 5 mm beyond it
     monitor.sample()
     assert monitor.moved_past_eoa_mm == [8]
+
+
+def test_on_a_line_the_front_train_has_no_train_ahead_and_a_head_behind_a_tail_is_no_collision():
+    from cbtc.layout_files import load_layout
+    from cbtc.sim.truth import head_inside, train_ahead
+
+    line, loop = load_layout("straight_test"), load_layout("itb_square")
+    assert not line.closed and loop.closed
+    assert train_ahead(line, [0.5, 2.0]) == {0: 1}                 # the front train has none ahead on a line
+    assert train_ahead(loop, [0.5, 2.0]) == {0: 1, 1: 0}           # on a loop the front train follows the rear one
+    # a follower's head 1 m behind the leader's tail (0.3 m long): a gap, not a collision
+    assert not head_inside(line, 1.0, 2.0, 0.3)
+    assert head_inside(line, 2.1, 2.0, 0.3)                        # its head inside the leader's span
+    assert not head_inside(line, 2.4, 2.0, 0.3)                    # past the leader's head: not inside its span

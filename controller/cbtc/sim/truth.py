@@ -17,8 +17,8 @@ def train_ahead(layout, heads_m):
 
 
 def head_inside(layout, head_s_m, ahead_tail_s_m, ahead_length_m) -> bool:
-    """A head inside the span of the train ahead: a collision."""
-    return layout.ahead_m(ahead_tail_s_m, head_s_m) <= ahead_length_m
+    """A head inside the span of the train ahead: a collision (on a line, a head still behind that tail is not)."""
+    return 0.0 <= layout.ahead_m(ahead_tail_s_m, head_s_m) <= ahead_length_m
 
 
 class TruthMonitor:
