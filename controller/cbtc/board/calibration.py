@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from cbtc.errors import ConfigError
+from cbtc.railway.geometry import circular_offset_m
 
 
 def counts_per_m(counts, distances_m):
@@ -62,7 +63,7 @@ def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None):
             if loop_m:
                 s_m %= loop_m
                 first = reads.get(uid, [s_m])[0]
-                s_m = first + ((s_m - first + loop_m / 2) % loop_m - loop_m / 2)
+                s_m = first + circular_offset_m(s_m, first, loop_m)
             reads.setdefault(uid, []).append(s_m)
     found = []
     for uid, values in reads.items():
