@@ -147,10 +147,19 @@ def decode_sealed(key, topic, payload, kind, specs):
     if not isinstance(msg, dict):
         raise WireError("payload on %s is not a JSON object" % topic)
     for field, word, want in (("v", "version", VERSION), ("k", "kind", kind), ("id", "train", train_id)):
-        if msg.get(field) != want:
-            raise WireError("message on %s names %s %r; this side expects %r" % (topic, word, msg.get(field), want))
+        got = msg.get(field)
+        if type(got) is not type(want) or got != want:   # a bool or a float is not the version
+            raise WireError("message on %s names %s %r; this side expects %r" % (topic, word, got, want))
     check_ints(msg, specs, topic)
     return msg
+
+
+def check_fields(msg, names, topic):
+    """WireError naming the first field of `msg` that is neither a header field nor in `names` (a tuple that may
+    hold other values too, such as check_ints specs): a message carries exactly the documented fields."""
+    for name in msg:
+        if name not in names and name not in ("v", "k", "id"):
+            raise WireError("message on %s has the unknown field %r (see docs/protocol.md)" % (topic, name))
 
 
 # --- reports ---------------------------------------------------------------------------------------------------
@@ -170,18 +179,21 @@ def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq
            "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "ips": ips, "tags": tags, "flt": faults}
     if rng is not None:
         msg["rng"] = rng   # absent (read as null) on boards without ranging
-    return seal(key, topic_report(train_id), json.dumps(msg).replace(" ", "").encode())
+    return seal(key, topic_report(train_id), json.dumps(msg, separators=(",", ":")).encode())
 
 
 # --- commands --------------------------------------------------------------------------------------------------
+# a command's fields, all integers, all required: (name, lowest, highest) flat
+COMMAND_INTS = ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31, "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31,
+                "ttl_ms", 1, 10000, "acc", 1, 10000, "dec", 1, 10000, "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
+                "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX)
+
 
 def decode_command(key, topic, payload):
     """The command dict of a sealed payload, validated; WireError with the reason otherwise."""
-    return decode_sealed(key, topic, payload, "cmd", ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31,
-                                                      "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31, "ttl_ms", 1, 10000,
-                                                      "acc", 1, 10000, "dec", 1, 10000,
-                                                      "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
-                                                      "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX))
+    msg = decode_sealed(key, topic, payload, "cmd", COMMAND_INTS)
+    check_fields(msg, COMMAND_INTS, topic)
+    return msg
 
 
 def __getattr__(name):

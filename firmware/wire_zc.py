@@ -13,7 +13,8 @@ except ImportError:
     import wire  # top level, as under the MicroPython unix port
 
 INT31, MAX_TAGS, VERSION, WireError = wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
-check_ints, decode_sealed, seal, topic_command = wire.check_ints, wire.decode_sealed, wire.seal, wire.topic_command
+check_fields, check_ints, decode_sealed = wire.check_fields, wire.check_ints, wire.decode_sealed
+seal, topic_command = wire.seal, wire.topic_command
 
 try:
     from micropython import const
@@ -35,15 +36,25 @@ def topic_zone_status(zone_id):
 
 # --- reports ---------------------------------------------------------------------------------------------------
 
+# a report's integer fields, all required: (name, lowest, highest) flat; then its other fields (`rng` optional)
+REPORT_INTS = ("seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31, "v_mmps", -20000, 20000, "duty", -100, 100,
+               "cseq", -1, INT31)
+REPORT_OTHER = ("mode", "ips", "tags", "rng", "flt")
+TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, INT31)
+UID_HEX_LENGTHS = (8, 14, 20)   # MFRC522 uids of 4, 7 and 10 bytes
+_HEX = "0123456789abcdefABCDEF"
+
+
 def decode_report(key, topic, payload):
     """The report dict of a sealed payload, validated; WireError with the reason otherwise."""
-    return check_report(decode_sealed(key, topic, payload, "rep", (
-        "seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31, "v_mmps", -20000, 20000, "duty", -100, 100,
-        "cseq", -1, INT31)), topic)
+    return check_report(decode_sealed(key, topic, payload, "rep", REPORT_INTS), topic)
 
 
-def _null_or_ints(msg, field, specs, topic):
-    """Check msg[field]: null (or absent), or a list of integers following `specs` (see wire.check_ints)."""
+def _null_or_ints(msg, field, specs, topic, required):
+    """Check msg[field]: null (or absent unless `required`), or a list of integers following `specs` (see
+    wire.check_ints)."""
+    if required and field not in msg:
+        raise WireError("field %r on %s is missing (null when there is nothing to report)" % (field, topic))
     value = msg.get(field)
     if value is not None:
         if not isinstance(value, list) or len(value) != len(specs) // 3:
@@ -55,23 +66,35 @@ def _null_or_ints(msg, field, specs, topic):
     msg[field] = value
 
 
+def _is_hex(text, lengths):
+    if not isinstance(text, str) or len(text) not in lengths:
+        return False
+    for ch in text:
+        if ch not in _HEX:
+            return False
+    return True
+
+
 def check_report(msg, topic):
     """`msg` (a report whose header and integer fields wire has checked) if its mode, ips, tags, rng and flt are
-    valid; WireError with the reason otherwise."""
+    valid and it has no other field; WireError with the reason otherwise."""
+    for name in msg:
+        if name not in REPORT_OTHER:
+            check_fields({name: 0}, REPORT_INTS, topic)
     if msg.get("mode") not in MODES:
         raise WireError("field 'mode' on %s is %r, not one of %s" % (topic, msg.get("mode"), ", ".join(MODES)))
-    _null_or_ints(msg, "ips", ("t_ms", 0, INT31, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic)
+    _null_or_ints(msg, "ips", ("t_ms", 0, INT31, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic, True)
     tags = msg.get("tags")
     if not isinstance(tags, list) or len(tags) > MAX_TAGS:
         raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms(, data)]"
                         % (topic, MAX_TAGS))
     for tag in tags:
-        if (not isinstance(tag, list) or not 3 <= len(tag) <= 4 or not isinstance(tag[0], str)
-                or not isinstance(tag[1], int) or not isinstance(tag[2], int)
-                or (len(tag) == 4 and not (isinstance(tag[3], str) and len(tag[3]) == 32))):
-            raise WireError("entry %r of 'tags' on %s must be [uid_hex, odo_mm, t_ms] or [uid_hex, odo_mm, t_ms, "
-                            "data: 32 hex digits of the balise telegram]" % (tag, topic))
-    _null_or_ints(msg, "rng", ("t_ms", 0, INT31, "gap_mm", -100000, _POS_MM), topic)
+        if (not isinstance(tag, list) or not 3 <= len(tag) <= 4 or not _is_hex(tag[0], UID_HEX_LENGTHS)
+                or (len(tag) == 4 and not _is_hex(tag[3], (32,)))):
+            raise WireError("entry %r of 'tags' on %s must be [uid: 8, 14 or 20 hex digits, odo_mm, t_ms] or "
+                            "[uid, odo_mm, t_ms, data: 32 hex digits of the balise telegram]" % (tag, topic))
+        check_ints(tag[1:3], TAG_INTS, topic, "tags")
+    _null_or_ints(msg, "rng", ("t_ms", 0, INT31, "gap_mm", -100000, _POS_MM), topic, False)
     faults = msg.get("flt")
     bad = not isinstance(faults, list)
     for name in [] if bad else faults:
@@ -101,4 +124,4 @@ def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mm
            "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
            "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms,
            "odo_mm_per_m": odo_mm_per_m}
-    return seal(key, topic_command(train_id), json.dumps(msg).replace(" ", "").encode())
+    return seal(key, topic_command(train_id), json.dumps(msg, separators=(",", ":")).encode())

@@ -44,6 +44,11 @@ import gc
 gc.collect()
 import wire
 import obu
+gc.collect()
+ZC_BYTES = gc.mem_alloc()
+import wire_zc   # the zone's half: the test encodes commands and reads reports with it; a board never loads it
+gc.collect()
+ZC_BYTES = gc.mem_alloc() - ZC_BYTES
 KEY = b"0123456789abcdef"
 peak = [0]
 def sample():
@@ -89,9 +94,9 @@ def last_report():
 
 def test_protocol_round_trip_and_rejections_under_micropython():
     script = PRELUDE + """
-p = wire.encode_report(KEY, "A", 1, 100, 5, 3, 20, "run", -1, [90, 1, 2], [["04AB", 3, 99]], ["ips_silent"])
+p = wire.encode_report(KEY, "A", 1, 100, 5, 3, 20, "run", -1, [90, 1, 2], [["04AB12CD", 3, 99]], ["ips_silent"])
 r = wire.decode_report(KEY, "cbtc/train/A/report", p)
-assert r["odo_mm"] == 5 and r["tags"][0][0] == "04AB"
+assert r["odo_mm"] == 5 and r["tags"][0][0] == "04AB12CD"
 c = wire.encode_command(KEY, "A", 1, 7, 1, 500, 1200, 1000, 600, 800)
 assert wire.decode_command(KEY, "cbtc/train/A/cmd", c)["eoa_mm"] == 1200
 for bad, why in ((b"junk", "mac"), (c.replace(b"1200", b"9200"), "authentication"), (p, "authentication")):
@@ -107,8 +112,10 @@ except wire.WireError as e:
     assert "authentication" in e.reason
 print("OK")
 """
-    rc, out, err = run_mpy(script)
-    assert rc == 0 and "OK" in out, err
+    # the zone's half of the protocol (wire_zc) never goes onto a board (firmware/manifest.py): it runs here beside
+    # the board's modules in a larger heap; the board's own figures are the loop's, below and in test_heap32
+    rc, out, err = run_mpy(script, heap="64K")
+    assert rc == 0 and "OK" in out, (out, err)
 
 
 def test_cpython_and_micropython_agree_on_the_mac():
@@ -183,7 +190,7 @@ for i in range(300):
 assert start + 1400 < unit.odo_mm <= start + 1500 and unit.trips == 0, unit.odo_mm
 assert braked_running > 0
 assert unit.seq - seq_at_250 == 50, "a report every 20 ms pass while commands ask for 20 ms"
-print("OK peak_heap_bytes", peak[0])
+print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
 """
     # the live heap is what counts here; a 36K arena of this port's double-size objects fragments at 30 KB live (a
     # command's decode then finds no 272 contiguous bytes), so the loop runs in a little more. The ESP8266's own

@@ -103,7 +103,7 @@ def write(tmp_path, data):
 
 
 GOOD = {"closed": True, "segments": [{"piece": "curve_r40", "count": 16}],      # a 2.0106 m circle
-        "stations": [{"name": "S", "s_m": 0.5}], "tags": [{"uid": "04AA", "s_m": 0.2}], "blocks": {"count": 4}}
+        "stations": [{"name": "S", "s_m": 0.5}], "tags": [{"uid": "04AA0001", "s_m": 0.2}], "blocks": {"count": 4}}
 
 
 @pytest.mark.parametrize("change, key, words", [
@@ -122,10 +122,12 @@ GOOD = {"closed": True, "segments": [{"piece": "curve_r40", "count": 16}],      
     ({"segments": [{"bridge": {"length_m": 1}}]}, "segments[0]", "one of 'straight', 'arc' or 'piece'"),
     ({"segments": []}, "segments", "empty"),
     ({"segments": {"piece": "straight"}}, "segments", "must be a list"),
-    ({"tags": [{"uid": "04AA", "s_m": 9.0}]}, "tags[0].s_m", "off the track"),
-    ({"tags": [{"uid": "04AA", "s_m": 2.0106193}]}, "tags[0].s_m", "off the track"),       # s = length is s = 0
-    ({"tags": [{"uid": "04AA", "s_m": 0.1}, {"uid": "04aa", "s_m": 0.3}]}, "tags[1].uid", "duplicate uid 04AA"),
-    ({"tags": [{"uid": "XYZ1", "s_m": 0.1}]}, "tags[0].uid", "hex"),
+    ({"tags": [{"uid": "04AA0001", "s_m": 9.0}]}, "tags[0].s_m", "off the track"),
+    ({"tags": [{"uid": "04AA0001", "s_m": 2.0106193}]}, "tags[0].s_m", "off the track"),       # s = length is s = 0
+    ({"tags": [{"uid": "04AA0001", "s_m": 0.1}, {"uid": "04aa0001", "s_m": 0.3}]}, "tags[1].uid",
+     "duplicate uid 04AA0001"),
+    ({"tags": [{"uid": "04AA00", "s_m": 0.1}]}, "tags[0].uid", "8, 14 or 20 digits"),
+    ({"tags": [{"uid": "XYZ10001", "s_m": 0.1}]}, "tags[0].uid", "hex"),
     ({"tags": [{"uid": 455000001, "s_m": 0.1}]}, "tags[0].uid", "quoted"),
     ({"tags": [{"s_m": 0.1}]}, "tags[0].uid", "missing"),
     ({"stations": [{"name": "S", "s_m": 5.0}]}, "stations[0].s_m", "off the track"),
@@ -162,7 +164,8 @@ def test_missing_keys_and_open_line_checks(tmp_path):
         with pytest.raises(LayoutError, match=f"x.yaml: {key}: missing"):
             layout_from_dict(data, "x.yaml")
     line = {"closed": False, "segments": [{"straight": {"length_m": 3.0}}]}
-    assert layout_from_dict({**line, "tags": [{"uid": "01", "s_m": 3.0}]}, "x.yaml").tags[0].s_m == 3.0  # the far end
+    far_end = {**line, "tags": [{"uid": "04000001", "s_m": 3.0}]}
+    assert layout_from_dict(far_end, "x.yaml").tags[0].s_m == 3.0
     with pytest.raises(LayoutError, match=r"blocks\[1\]\.end_m: must be beyond start_m"):
         layout_from_dict({**line, "blocks": [{"start_m": 0.0, "end_m": 1.0}, {"start_m": 2.0, "end_m": 1.5}]}, "x.yaml")
     gappy = layout_from_dict({**line, "blocks": [{"start_m": 0.0, "end_m": 1.0}, {"start_m": 2.0, "end_m": 3.0}]}, "x")

@@ -1,5 +1,5 @@
-"""docs/protocol.md and the wire module say the same: the fields of a report and a command, the modes, the faults,
-the topics and the payload limit."""
+"""docs/protocol.md and the wire module say the same: the fields of a report and a command and their ranges, the
+modes, the faults, the topics and the payload limit."""
 
 import json
 import os
@@ -46,11 +46,50 @@ def test_modes_faults_topics_and_limits_match():
     doc = open(DOC).read()
     report = _section(doc, "### Report")
     mode_row = next(line for line in report.splitlines() if line.startswith("| `mode`"))
-    assert set(re.findall(r"`([a-z_]+)`", mode_row.split("|")[3])) == set(wire.MODES)
+    assert set(re.findall(r"`([a-z_]+)`", mode_row.split("|")[4])) == set(wire.MODES)
     fault_row = next(line for line in report.splitlines() if line.startswith("| `flt`"))
-    assert set(re.findall(r"`([a-z_]+)`", fault_row.split("|")[3])) == set(wire.FAULTS)
+    assert set(re.findall(r"`([a-z_]+)`", fault_row.split("|")[4])) == set(wire.FAULTS)
     for topic in (wire.topic_report("<id>"), wire.topic_command("<id>"), wire.topic_status("<id>"),
                   wire.topic_zone_status("<zone>")):
         assert f"`{topic}`" in doc
     assert f"Payloads over {wire._MAX_PAYLOAD} bytes are refused" in doc
     assert wire.decode_report.__module__.endswith("wire_zc") and wire.VERSION == 1 and "(version 1)" in doc
+
+
+def _number(text):
+    text = text.strip()
+    if text.startswith("-(") and text.endswith(")"):
+        return -_number(text[2:-1])
+    return 2 ** 31 - 1 if text == "2^31-1" else int(text)
+
+
+def _int_ranges(section):
+    """{field: (lo, hi)} of the table rows typed `int` with a range `[lo, hi]`."""
+    ranges = {}
+    for line in section.splitlines():
+        cells = line.split("|")
+        if line.startswith("| `") and len(cells) > 4 and cells[2].strip() == "int":
+            match = re.fullmatch(r"\[(.+), (.+)\]", cells[3].strip())
+            if match:
+                ranges[re.findall(r"`([a-z_]+)`", cells[1])[0]] = (_number(match[1]), _number(match[2]))
+    return ranges
+
+
+def _spec_ranges(specs):
+    return {specs[i]: (specs[i + 1], specs[i + 2]) for i in range(0, len(specs), 3)}
+
+
+def test_documented_integer_ranges_are_the_checked_ones():
+    doc = open(DOC).read()
+    assert _int_ranges(_section(doc, "### Report")) == _spec_ranges(wire.REPORT_INTS)
+    assert _int_ranges(_section(doc, "### Command")) == _spec_ranges(wire.COMMAND_INTS)
+    tags_row = next(line for line in doc.splitlines() if line.startswith("| `tags`"))
+    assert f"at most {wire.MAX_TAGS}" in tags_row
+    assert "uid %d, %d or %d hex digits" % wire.UID_HEX_LENGTHS in tags_row
+    assert "t_ms " + _doc_range(wire.TAG_INTS[4:6]) in tags_row
+
+
+def _doc_range(bounds):
+    lo, hi = bounds
+    text = lambda n: "2^31-1" if n == 2 ** 31 - 1 else ("-(2^31-1)" if n == -(2 ** 31 - 1) else str(n))
+    return f"[{text(lo)}, {text(hi)}]"

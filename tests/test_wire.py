@@ -14,7 +14,7 @@ KEY = bytes(range(16))
 
 def report(**changes):
     fields = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3,
-                  ips=[950, 100, -200], tags=[["04A1B2C3D4", 1200, 990]], faults=["ips_crc"])
+                  ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990]], faults=["ips_crc"])
     fields.update(changes)
     return wire.encode_report(KEY, "A", **fields)
 
@@ -27,7 +27,7 @@ def test_hmac_matches_the_standard_library():
 
 def test_report_round_trip():
     msg = wire.decode_report(KEY, "cbtc/train/A/report", report())
-    assert msg["odo_mm"] == 1234 and msg["ips"] == [950, 100, -200] and msg["tags"][0][0] == "04A1B2C3D4"
+    assert msg["odo_mm"] == 1234 and msg["ips"] == [950, 100, -200] and msg["tags"][0][0] == "04A1B2C3D4E5F6"
 
 
 def test_command_round_trip():
@@ -62,6 +62,22 @@ def reseal(body: dict, topic="cbtc/train/A/report"):
     ({"ips": [1, 2]}, "'ips'"),
     ({"tags": [["x", 1]]}, "'tags'"),
     ({"flt": ["meltdown"]}, "'flt'"),
+    ({"v": True}, "version True"),                      # a bool is not a number
+    ({"v": 1.0}, "version 1.0"),
+    ({"id": None}, "names train None"),
+    ({"seq": True}, "must be an integer"),
+    ({"t_ms": 2 ** 40}, "'t_ms'"),
+    ({"odo_mm": 1.5}, "'odo_mm'"),
+    ({"tags": [["04A1B2", 1200, 990]]}, "8, 14 or 20 hex digits"),          # a uid no reader gives
+    ({"tags": [["04A1B2ZZ", 1200, 990]]}, "8, 14 or 20 hex digits"),
+    ({"tags": [[1234, 1200, 990]]}, "8, 14 or 20 hex digits"),
+    ({"tags": [["04A1B2C3", True, 990]]}, "('tags', 'odo_mm')"),
+    ({"tags": [["04A1B2C3", 10 ** 400, 990]]}, "('tags', 'odo_mm')"),
+    ({"tags": [["04A1B2C3", 1200, -1]]}, "('tags', 't_ms')"),
+    ({"tags": [["04A1B2C3", 1200, 990, "00" * 15 + "GG"]]}, "32 hex digits"),
+    ({"ips": [950, True, -200]}, "('ips', 'x_mm')"),
+    ({"rng": [950, 1.5]}, "('rng', 'gap_mm')"),
+    ({"extra": 1}, "unknown field 'extra'"),
 ])
 def test_invalid_report_fields_are_rejected_with_the_reason(change, reason):
     body = json.loads(report().rsplit(b"#", 1)[0])
@@ -106,3 +122,32 @@ def test_bad_topics_name_the_problem(topic):
     with pytest.raises(wire.WireError) as err:
         wire.train_id_of(topic)
     assert "train id" in err.value.reason or "not cbtc/train" in err.value.reason
+
+
+def test_a_report_without_its_ips_field_is_refused():
+    body = json.loads(report().rsplit(b"#", 1)[0])
+    del body["ips"]
+    with pytest.raises(wire.WireError, match="'ips' .* is missing"):
+        wire.decode_report(KEY, "cbtc/train/A/report", reseal(body))
+
+
+@pytest.mark.parametrize("change, reason", [
+    ({"v": True}, "version True"),
+    ({"eoa_mm": 3000.0}, "'eoa_mm'"),
+    ({"ttl_ms": False}, "'ttl_ms'"),
+    ({"sid": 2 ** 31}, "'sid'"),
+    ({"boost": 1}, "unknown field 'boost'"),
+])
+def test_invalid_command_fields_are_rejected_with_the_reason(change, reason):
+    payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
+    body = json.loads(payload.rsplit(b"#", 1)[0])
+    body.update(change)
+    with pytest.raises(wire.WireError) as err:
+        wire.decode_command(KEY, "cbtc/train/A/cmd", reseal(body, "cbtc/train/A/cmd"))
+    assert reason in err.value.reason
+
+
+def test_encoding_is_compact_json_by_its_separators():
+    body = report().rsplit(b"#", 1)[0]
+    assert json.loads(body) == json.loads(json.dumps(json.loads(body), separators=(",", ":")))
+    assert body == json.dumps(json.loads(body), separators=(",", ":")).encode()

@@ -8,6 +8,7 @@ import math
 import os
 
 from cbtc.errors import LayoutError
+from cbtc.protocol import wire
 from cbtc.railway.geometry import Path, forward_m
 from cbtc.railway.layout import Block, IpsFrame, Layout, Station, Tag, span_on_loop_m
 
@@ -201,13 +202,14 @@ def _tags(r, items, length, closed):
         where = f"tags[{i}]"
         item = r.mapping(item, where, ("uid", "s_m"))
         if "uid" not in item:
-            r.fail(f"{where}.uid", "missing: add the tag's uid as a quoted hex string, e.g. '04A1B2C3D4'")
+            r.fail(f"{where}.uid", "missing: add the tag's uid as a quoted hex string, e.g. '04A1B2C3'")
         uid = item["uid"]
         if not isinstance(uid, str):
-            r.fail(f"{where}.uid", f"must be a quoted hex string such as '04A1B2C3D4', got {uid!r} (unquoted, YAML "
+            r.fail(f"{where}.uid", f"must be a quoted hex string such as '04A1B2C3', got {uid!r} (unquoted, YAML "
                                    "reads hex digits as a number)")
-        if not uid or len(uid) % 2 or any(c not in "0123456789abcdefABCDEF" for c in uid):
-            r.fail(f"{where}.uid", f"must be whole bytes of hex such as '04A1B2C3D4', got {uid!r}")
+        if len(uid) not in wire.UID_HEX_LENGTHS or any(c not in "0123456789abcdefABCDEF" for c in uid):
+            r.fail(f"{where}.uid", f"must be a 4, 7 or 10-byte uid in hex (8, 14 or 20 digits) such as '04A1B2C3', "
+                                   f"as the reader prints it; got {uid!r}")
         uid = uid.upper()
         if uid in uids:
             r.fail(f"{where}.uid", f"duplicate uid {uid}: each tag needs its own")
