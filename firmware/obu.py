@@ -65,8 +65,9 @@ class OnboardUnit:
     guard_trips = 0
     trips = 0                # times the speed crossed the trip curve (emergency brake)
 
-    def __init__(self, train_id, key, encoder, ips, rfid, motor, publish, config=None, ranging=None):
+    def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
+        self.boot_id = boot_id   # random at each boot (assemble.new_boot_id); every command must name it
         self._key = key
         self.encoder = encoder
         self.ips = ips
@@ -125,6 +126,9 @@ class OnboardUnit:
             return
         try:
             cmd = wire.decode_command(self._key, topic, payload)
+            if cmd["boot"] != self.boot_id:
+                raise wire.WireError("command of boot %d; this is boot %d (recorded before a restart?)"
+                                     % (cmd["boot"], self.boot_id))
             if cmd["sid"] == self.sid and cmd["seq"] <= self.cseq:
                 raise wire.WireError("replayed command: seq %d of session %d is not after %d"
                                      % (cmd["seq"], cmd["sid"], self.cseq))
@@ -385,8 +389,9 @@ class OnboardUnit:
         slot = seq % _HISTORY
         self._sent_seq[slot] = seq
         self._sent_t[slot] = now_ms
-        payload = wire.encode_report(self._key, self.train_id, seq, now_ms, self.odo_mm, self.v_mmps, self.duty_pct,
-                                     self.mode, self.cseq, self._ips_fix, self._tags, self.faults, self._rng_report)
+        payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
+                                     self.duty_pct, self.mode, self.cseq, self._ips_fix, self._tags, self.faults,
+                                     self._rng_report)
         self.seq = seq + 1
         self._ips_fix = None
         if self._rng_report is not None:

@@ -30,6 +30,7 @@ ODO_MM_PER_M_MIN = const(500)    # the encoder scales a command may state (odome
 ODO_MM_PER_M_MAX = const(2000)   # off by a factor of two
 MAX_TAGS = const(4)
 INT31 = const(2147483647)     # largest sequence number, time or odometer value
+BOOT_MAX = const(1073741823)  # boot ids are 1..2^30-1: a small int on the board
 _MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
 _MAX_PAYLOAD = const(1024)    # longest payload accepted (bytes)
 _ID_MAX_LEN = const(16)       # longest train id (characters)
@@ -164,18 +165,19 @@ def check_fields(msg, names, topic):
 
 # --- reports ---------------------------------------------------------------------------------------------------
 
-def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, ips, tags, faults, rng=None):
+def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, ips, tags, faults,
+                  rng=None):
     """Sealed report payload.
 
-    t_ms: board uptime (ms) when sampled; odo_mm: encoder odometer (mm); v_mmps: encoder speed (mm/s);
-    duty_pct: motor duty (%); mode: one of MODES (wire_zc.py); cseq: seq of the last accepted command (-1 if none);
-    ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report, stamped on the board's clock);
-    tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from FAULTS
-    (wire_zc.py);
+    boot: this boot's id (new_boot_id); t_ms: board uptime (ms) when sampled; odo_mm: encoder odometer (mm);
+    v_mmps: encoder speed (mm/s); duty_pct: motor duty (%); mode: one of MODES (wire_zc.py); cseq: seq of the last
+    accepted command (-1 if none); ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report, stamped on the
+    board's clock); tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from
+    FAULTS (wire_zc.py);
     rng: None or [t_ms, gap_mm], the newest gap to the train ahead measured by the onboard ranging since the last
     report (board clock; gap from this head to the leader's tail, mm).
     """
-    msg = {"v": VERSION, "k": "rep", "id": train_id, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
+    msg = {"v": VERSION, "k": "rep", "id": train_id, "boot": boot, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
            "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "ips": ips, "tags": tags, "flt": faults}
     if rng is not None:
         msg["rng"] = rng   # absent (read as null) on boards without ranging
@@ -184,7 +186,8 @@ def encode_report(key, train_id, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq
 
 # --- commands --------------------------------------------------------------------------------------------------
 # a command's fields, all integers, all required: (name, lowest, highest) flat
-COMMAND_INTS = ("seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31, "v_mmps", 0, 5000, "eoa_mm", -INT31, INT31,
+COMMAND_INTS = ("boot", 1, BOOT_MAX, "seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31, "v_mmps", 0, 5000,
+                "eoa_mm", -INT31, INT31,
                 "ttl_ms", 1, 10000, "acc", 1, 10000, "dec", 1, 10000, "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
                 "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX)
 

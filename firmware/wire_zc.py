@@ -12,7 +12,7 @@ try:
 except ImportError:
     import wire  # top level, as under the MicroPython unix port
 
-INT31, MAX_TAGS, VERSION, WireError = wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
+BOOT_MAX, INT31, MAX_TAGS, VERSION, WireError = wire.BOOT_MAX, wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
 check_fields, check_ints, decode_sealed = wire.check_fields, wire.check_ints, wire.decode_sealed
 seal, topic_command = wire.seal, wire.topic_command
 
@@ -37,7 +37,8 @@ def topic_zone_status(zone_id):
 # --- reports ---------------------------------------------------------------------------------------------------
 
 # a report's integer fields, all required: (name, lowest, highest) flat; then its other fields (`rng` optional)
-REPORT_INTS = ("seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31, "v_mmps", -20000, 20000, "duty", -100, 100,
+REPORT_INTS = ("boot", 1, BOOT_MAX, "seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31,
+               "v_mmps", -20000, 20000, "duty", -100, 100,
                "cseq", -1, INT31)
 REPORT_OTHER = ("mode", "ips", "tags", "rng", "flt")
 TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, INT31)
@@ -106,11 +107,12 @@ def check_report(msg, topic):
 
 # --- commands --------------------------------------------------------------------------------------------------
 
-def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm=None,
+def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm=None,
                    rpt_ms=0, odo_mm_per_m=1000):
     """Sealed command payload.
 
-    sid: the controller's session id (a new random int each start); seq: increasing within a session;
+    boot: the boot id of the train's report rseq (the board refuses a command of another boot); sid: the
+    controller's session id (a new random int each start); seq: increasing within a session;
     rseq: the report this command is based on; v_mmps: speed ceiling (mm/s, >= 0); eoa_mm: end of authority as a
     value of the train's own odometer (mm) that its head must not pass (supervised by the trip curve); ttl_ms:
     validity, counted on the board's clock from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and
@@ -120,7 +122,7 @@ def encode_command(key, train_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mm
     bound of the board's odometer millimetres per true metre (its encoder's scale, 1000: it reads true), which the
     board's braking curves scale its decelerations by, so they hold in true metres.
     """
-    msg = {"v": VERSION, "k": "cmd", "id": train_id, "seq": seq, "sid": sid, "rseq": rseq,
+    msg = {"v": VERSION, "k": "cmd", "id": train_id, "boot": boot, "seq": seq, "sid": sid, "rseq": rseq,
            "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
            "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms,
            "odo_mm_per_m": odo_mm_per_m}

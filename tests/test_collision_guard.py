@@ -24,7 +24,7 @@ class Bench:
         self.enc = FakeEncoder()
         self.motor = FakeMotor()
         self.ranging = FakeRanging()
-        self.unit = obu.OnboardUnit("B", KEY, self.enc, FakeIps(), FakeRfid(), self.motor,
+        self.unit = obu.OnboardUnit("B", KEY, 9, self.enc, FakeIps(), FakeRfid(), self.motor,
                                     lambda topic, payload: self.sent.append((topic, payload)),
                                     {"counts_per_m": 1000, "emergency_dec_mmps2": 1400, "reaction_ms": 60,
                                      "report_ms": 100},
@@ -40,8 +40,8 @@ class Bench:
     def command(self):
         self.seq += 1
         rseq = wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])["seq"]
-        self.unit.on_message(CMD, wire.encode_command(KEY, "B", self.seq, 1, rseq, 600, 100000, 800, 600, 800),
-                             self.now_ms)
+        payload = wire.encode_command(KEY, "B", self.unit.boot_id, self.seq, 1, rseq, 600, 100000, 800, 600, 800)
+        self.unit.on_message(CMD, payload, self.now_ms)
 
     def cruise(self, v_mmps, steps):
         for _ in range(steps):

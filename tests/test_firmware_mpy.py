@@ -86,7 +86,7 @@ def publish(topic, payload):
     if len(sent) > 3:
         sent.pop(0)
 enc = Enc(); rfid = Rfid(); motor = Motor()
-unit = obu.OnboardUnit("A", KEY, enc, Ips(), rfid, motor, publish, {"counts_per_m": 1000})
+unit = obu.OnboardUnit("A", KEY, 9, enc, Ips(), rfid, motor, publish, {"counts_per_m": 1000})
 def last_report():
     return wire.decode_report(KEY, "cbtc/train/A/report", sent[-1])
 """
@@ -94,10 +94,10 @@ def last_report():
 
 def test_protocol_round_trip_and_rejections_under_micropython():
     script = PRELUDE + """
-p = wire.encode_report(KEY, "A", 1, 100, 5, 3, 20, "run", -1, [90, 1, 2], [["04AB12CD", 3, 99]], ["ips_silent"])
+p = wire.encode_report(KEY, "A", 1, 1, 100, 5, 3, 20, "run", -1, [90, 1, 2], [["04AB12CD", 3, 99]], ["ips_silent"])
 r = wire.decode_report(KEY, "cbtc/train/A/report", p)
 assert r["odo_mm"] == 5 and r["tags"][0][0] == "04AB12CD"
-c = wire.encode_command(KEY, "A", 1, 7, 1, 500, 1200, 1000, 600, 800)
+c = wire.encode_command(KEY, "A", 1, 1, 7, 1, 500, 1200, 1000, 600, 800)
 assert wire.decode_command(KEY, "cbtc/train/A/cmd", c)["eoa_mm"] == 1200
 for bad, why in ((b"junk", "mac"), (c.replace(b"1200", b"9200"), "authentication"), (p, "authentication")):
     try:
@@ -119,9 +119,9 @@ print("OK")
 
 
 def test_cpython_and_micropython_agree_on_the_mac():
-    cpy = wire.encode_command(b"0123456789abcdef", "A", 3, 9, 2, 400, 777, 800, 600, 800)
-    rc, out, err = run_mpy("import wire\nprint(wire.encode_command(b'0123456789abcdef', 'A', 3, 9, 2, 400, 777, 800, "
-                           "600, 800).decode())")
+    cpy = wire.encode_command(b"0123456789abcdef", "A", 1, 3, 9, 2, 400, 777, 800, 600, 800)
+    rc, out, err = run_mpy("import wire\nprint(wire.encode_command(b'0123456789abcdef', 'A', 1, 3, 9, 2, 400, 777, "
+                           "800, 600, 800).decode())")
     assert rc == 0, err
     # MicroPython's json may order keys differently: the MAC covers the bytes, so each side verifies the other's
     assert wire.decode_command(b"0123456789abcdef", "cbtc/train/A/cmd", out.strip().encode())["eoa_mm"] == 777
@@ -148,7 +148,7 @@ def command(eoa, v=500, rseq=None, sid=1, key=KEY, s=None):
         seq[0] += 1
         s = seq[0]
     rs = last_report()["seq"] if rseq is None else rseq
-    pay = wire.encode_command(key, "A", s, sid, rs, v, eoa, 800, 600, 800)
+    pay = wire.encode_command(key, "A", unit.boot_id, s, sid, rs, v, eoa, 800, 600, 800)
     unit.on_message("cbtc/train/A/cmd", pay, now)
     return pay
 good = command(3000)
@@ -175,7 +175,8 @@ assert "cmd_timeout" in last_report()["flt"]
 start = unit.odo_mm
 def command2(eoa, stop, rpt):
     seq[0] += 1
-    pay = wire.encode_command(KEY, "A", seq[0], 1, last_report()["seq"], 500, eoa, 800, 600, 800, stop, rpt)
+    rs = last_report()["seq"]
+    pay = wire.encode_command(KEY, "A", unit.boot_id, seq[0], 1, rs, 500, eoa, 800, 600, 800, stop, rpt)
     unit.on_message("cbtc/train/A/cmd", pay, now)
 braked_running = 0
 seq_at_250 = 0
@@ -200,3 +201,21 @@ print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
     print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
     assert peak < 30 * 1024, "leave the ESP8266 room for the network stack and umqtt"
+
+
+def test_a_command_recorded_before_a_reboot_is_refused_under_micropython():
+    script = PRELUDE + """
+now = 20
+unit.step(now)
+rec = wire.encode_command(KEY, "A", unit.boot_id, 1, 1, last_report()["seq"], 500, 3000, 800, 600, 800)
+unit.on_message("cbtc/train/A/cmd", rec, now)
+assert unit.cseq == 1
+unit = obu.OnboardUnit("A", KEY, 10, Enc(), Ips(), rfid, Motor(), publish, {"counts_per_m": 1000})   # rebooted
+unit.step(20)
+assert last_report()["seq"] == 0 and last_report()["boot"] == 10
+unit.on_message("cbtc/train/A/cmd", rec, 20)
+assert unit.cmd is None and unit.rejected == 1 and "boot 9; this is boot 10" in unit.last_reject, unit.last_reject
+print("OK")
+"""
+    rc, out, err = run_mpy(script, heap="64K")
+    assert rc == 0 and "OK" in out, (out, err)

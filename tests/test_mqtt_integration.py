@@ -181,11 +181,12 @@ def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
         before = fleet.status()["trains"][0]
         forged_eoa_mm = body["odo_mm"] + 100000
         attacker.publish("cbtc/train/A/cmd", wire.encode_command(
-            b"wrong key 16 byt", "A", real["seq"] + 1000, real["sid"], body["seq"], 600, forged_eoa_mm, 800, 600, 800))
+            b"wrong key 16 byt", "A", body["boot"], real["seq"] + 1000, real["sid"], body["seq"], 600, forged_eoa_mm,
+            800, 600, 800))
         attacker.publish("cbtc/train/A/cmd", replay)
         attacker.publish("cbtc/train/A/report", reports[-1][:-4] + b"0000")                  # MAC broken
         attacker.publish("cbtc/train/Z/report", wire.encode_report(
-            b"0123456789abcdef", "Z", 1, 1000, 0, 0, 0, "idle", -1, None, [], []))             # unknown train
+            b"0123456789abcdef", "Z", 1, 1, 1000, 0, 0, 0, "idle", -1, None, [], []))             # unknown train
         after = fleet.wait(lambda s: s["trains"][0]["commands_rejected_onboard"] >= before[
             "commands_rejected_onboard"] + 2, 5, "two rejections on board")
         a = after["trains"][0]

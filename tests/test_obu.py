@@ -19,13 +19,13 @@ CMD = "cbtc/train/A/cmd"
 
 
 class Bench:
-    def __init__(self, **drivers):
+    def __init__(self, boot_id=9, **drivers):
         self.sent = []
         self.enc = drivers.get("encoder", FakeEncoder())
         self.motor = FakeMotor()
-        self.unit = obu.OnboardUnit("A", KEY, self.enc, drivers.get("ips", FakeIps()), drivers.get("rfid", FakeRfid()),
-                                    self.motor, lambda topic, payload: self.sent.append((topic, payload)),
-                                    {"counts_per_m": 1000})
+        self.unit = obu.OnboardUnit("A", KEY, boot_id, self.enc, drivers.get("ips", FakeIps()),
+                                    drivers.get("rfid", FakeRfid()), self.motor,
+                                    lambda topic, payload: self.sent.append((topic, payload)), {"counts_per_m": 1000})
         self.now_ms = 0
         self.cmd_seq = 0
         self._travel_mm = 0.0
@@ -53,8 +53,8 @@ class Bench:
             self.cmd_seq += 1
             seq = self.cmd_seq
         rseq = self.last_report()["seq"] if rseq is None else rseq
-        payload = wire.encode_command(key, "A", seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800, stop_mm, rpt_ms,
-                                      odo_mm_per_m)
+        payload = wire.encode_command(key, "A", self.unit.boot_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800,
+                                      stop_mm, rpt_ms, odo_mm_per_m)
         self.unit.on_message(CMD, payload, self.now_ms)
         return payload
 
@@ -159,7 +159,7 @@ def test_broken_sensors_are_reported_and_never_stop_the_loop():
 
 def test_unknown_config_key_is_named():
     with pytest.raises(ValueError, match="counts_per_metre"):
-        obu.OnboardUnit("A", KEY, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print, {"counts_per_metre": 3})
+        obu.OnboardUnit("A", KEY, 9, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print, {"counts_per_metre": 3})
 
 
 def test_the_trip_curve_lies_above_the_service_curve_everywhere():

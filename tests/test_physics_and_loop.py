@@ -83,8 +83,8 @@ def test_onboard_speed_loop_tracks_the_commanded_speed_on_the_plant():
     def answer(topic, payload):
         report = wire.decode_report(key, topic, payload)
         seq[0] += 1
-        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", seq[0], 1, report["seq"], 400,
-                                                                 5000, 800, 600, 800))
+        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", report["boot"], seq[0], 1, report["seq"],
+                                                                 400, 5000, 800, 600, 800))
     ctl.subscribe(wire.topic_report("A"), answer)
     sched.call_every(0.02, train.tick)
     sched.call_every(0.1, lambda now: speeds.append(train.v_mps), start_s=0.01)
@@ -114,8 +114,8 @@ def test_the_speed_loop_rides_the_service_curve_to_a_standstill_without_tripping
     def answer(topic, payload):
         report = wire.decode_report(key, topic, payload)
         state["seq"] += 1
-        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", state["seq"], 1, report["seq"], 600,
-                                                                 state["eoa_mm"], 800, 600, 800))
+        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", report["boot"], state["seq"], 1,
+                                                                 report["seq"], 600, state["eoa_mm"], 800, 600, 800))
     ctl.subscribe(wire.topic_report("A"), answer)
     sched.call_every(0.02, train.tick)
     over = []   # how far the train's speed (odometer units, as the board sees distance) is above its service curve

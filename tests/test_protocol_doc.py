@@ -32,13 +32,13 @@ def _body(payload):
 
 def test_report_table_lists_exactly_the_report_fields():
     doc = open(DOC).read()
-    payload = wire.encode_report(KEY, "A", 1, 100, 5, 0, 0, "run", -1, None, [], [], rng=[90, 400])
+    payload = wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, None, [], [], rng=[90, 400])
     assert _table_fields(_section(doc, "### Report")) == set(_body(payload))
 
 
 def test_command_table_lists_exactly_the_command_fields():
     doc = open(DOC).read()
-    payload = wire.encode_command(KEY, "A", 1, 7, 1, 300, 1000, 800, 600, 800)
+    payload = wire.encode_command(KEY, "A", 1, 1, 7, 1, 300, 1000, 800, 600, 800)
     assert _table_fields(_section(doc, "### Command")) == set(_body(payload))
 
 
@@ -60,7 +60,8 @@ def _number(text):
     text = text.strip()
     if text.startswith("-(") and text.endswith(")"):
         return -_number(text[2:-1])
-    return 2 ** 31 - 1 if text == "2^31-1" else int(text)
+    power = re.fullmatch(r"2\^(\d+)-1", text)
+    return 2 ** int(power[1]) - 1 if power else int(text)
 
 
 def _int_ranges(section):

@@ -133,7 +133,6 @@ def test_estimates_track_truth_in_the_demo(square):
 
 def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     """A train's board reboots mid-run: seq and clock start again; the controller re-locates it before it moves."""
-    from cbtc.firmware import obu as obu_module
     from cbtc.sim.drivers import SimIps
     sim = Simulation(paper_scenario(square, seed=6, laps=None, duration_s=60))
     run_to(sim, 15.0)
@@ -142,11 +141,9 @@ def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     train.frozen = True                      # power cut: the board is silent for 4 s, the motor brake holds
     train.motor.brake()
     run_to(sim, 19.0)
-    train.encoder.distance_m = 0.0           # a fresh board counts from zero on a new clock
-    train.clock_offset_ms = -int(19.0 * 1000)
     train.ips = SimIps(train.profile, square, np.random.default_rng(99))
-    train.obu = obu_module.OnboardUnit(old.train_id, old._key, train.encoder, train.ips, train.rfid, train.motor,
-                                       old._publish, old.cfg)
+    train.reboot(19.0)                       # a fresh board counts from zero on a new clock, with a new boot id
+    assert train.obu.boot_id != old.boot_id
     train.frozen = False
     run_to(sim, 45.0)
     state = sim.zc.trains[train.train_id]

@@ -10,13 +10,14 @@ import pytest
 from cbtc.protocol import wire
 
 KEY = bytes(range(16))
+BOOT = 77
 
 
 def report(**changes):
     fields = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3,
                   ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990]], faults=["ips_crc"])
     fields.update(changes)
-    return wire.encode_report(KEY, "A", **fields)
+    return wire.encode_report(KEY, "A", BOOT, **fields)
 
 
 def test_hmac_matches_the_standard_library():
@@ -31,17 +32,17 @@ def test_report_round_trip():
 
 
 def test_command_round_trip():
-    payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
+    payload = wire.encode_command(KEY, "A", BOOT, 5, 99, 7, 500, 3000, 800, 600, 800)
     msg = wire.decode_command(KEY, "cbtc/train/A/cmd", payload)
     assert (msg["seq"], msg["sid"], msg["rseq"], msg["eoa_mm"], msg["ttl_ms"]) == (5, 99, 7, 3000, 800)
     assert msg["odo_mm_per_m"] == 1000, "a wheel that reads true unless the controller states its scale"
-    scaled = wire.encode_command(KEY, "A", 6, 99, 7, 500, 3000, 800, 600, 800, odo_mm_per_m=1015)
+    scaled = wire.encode_command(KEY, "A", BOOT, 6, 99, 7, 500, 3000, 800, 600, 800, odo_mm_per_m=1015)
     assert wire.decode_command(KEY, "cbtc/train/A/cmd", scaled)["odo_mm_per_m"] == 1015
 
 
 @pytest.mark.parametrize("scale", [0, 499, 2001])
 def test_an_encoder_scale_out_of_range_is_refused_naming_the_field(scale):
-    payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800, odo_mm_per_m=scale)
+    payload = wire.encode_command(KEY, "A", BOOT, 5, 99, 7, 500, 3000, 800, 600, 800, odo_mm_per_m=scale)
     with pytest.raises(wire.WireError) as err:
         wire.decode_command(KEY, "cbtc/train/A/cmd", payload)
     assert "'odo_mm_per_m'" in err.value.reason
@@ -111,7 +112,7 @@ def test_wrong_key_tampering_and_topic_swap_fail_authentication():
     tampered = good.replace(b'"odo_mm":1234', b'"odo_mm":9234')
     with pytest.raises(wire.WireError, match="authentication"):
         wire.decode_report(KEY, "cbtc/train/A/report", tampered)
-    cmd = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
+    cmd = wire.encode_command(KEY, "A", BOOT, 5, 99, 7, 500, 3000, 800, 600, 800)
     with pytest.raises(wire.WireError):
         wire.decode_command(KEY, "cbtc/train/B/cmd", cmd)
 
@@ -139,7 +140,7 @@ def test_a_report_without_its_ips_field_is_refused():
     ({"boost": 1}, "unknown field 'boost'"),
 ])
 def test_invalid_command_fields_are_rejected_with_the_reason(change, reason):
-    payload = wire.encode_command(KEY, "A", 5, 99, 7, 500, 3000, 800, 600, 800)
+    payload = wire.encode_command(KEY, "A", BOOT, 5, 99, 7, 500, 3000, 800, 600, 800)
     body = json.loads(payload.rsplit(b"#", 1)[0])
     body.update(change)
     with pytest.raises(wire.WireError) as err:

@@ -30,6 +30,7 @@ def assemble():
     import assemble
 
     _["unit"], _["link"], _["wdt"], _["cfg"] = assemble.build(_["cfg"], _["drivers"])
+    _["unit"].boot_id = 4242   # the boot the test's prepared commands name (a board draws its own)
     sys.modules.pop("assemble")
     del _["drivers"]
 

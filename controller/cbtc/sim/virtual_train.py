@@ -6,6 +6,8 @@ scheduler calls `tick(now_s)` every loop period; the board's clock is the schedu
 nothing may assume the two sides share a clock.
 """
 
+import hashlib
+
 from cbtc.firmware import obu as obu_module
 from cbtc.protocol import wire
 from cbtc.railway import physics
@@ -28,10 +30,12 @@ class VirtualTrain:
         self.ips = SimIps(profile, layout, rng)
         self.rfid = SimRfid(profile, layout, rng)
         self.motor = SimMotor()
-        config = profile.obu_config()
-        config.update(obu_overrides or {})
-        self.obu = obu_module.OnboardUnit(train_id, key, self.encoder, self.ips, self.rfid, self.motor,
-                                          self._publish, config, ranging)
+        self._key = key
+        self._config = profile.obu_config()
+        self._config.update(obu_overrides or {})
+        self._ranging = ranging
+        self.boots = 0
+        self.obu = self._boot()
         self._last_s = None
         self._now_s = 0.0
         self.frozen = False  # a dead board: no loop, no reports, motor state as it was
@@ -47,6 +51,21 @@ class VirtualTrain:
     @property
     def tail_s(self) -> float:
         return self.layout.wrap(self.s0_m + self.travelled_m - self.profile.length_m)
+
+    def _boot(self):
+        """A fresh OnboardUnit with the next boot id: drawn from the key and the boot count, so a seeded run repeats
+        and every reboot differs."""
+        self.boots += 1
+        digest = hashlib.sha256(b"boot/%d/" % self.boots + self._key).digest()
+        boot_id = (int.from_bytes(digest[:4], "big") & wire.BOOT_MAX) or 1
+        return obu_module.OnboardUnit(self.train_id, self._key, boot_id, self.encoder, self.ips, self.rfid,
+                                      self.motor, self._publish, self._config, self._ranging)
+
+    def reboot(self, now_s: float):
+        """The board restarts at `now_s`: a new boot id, the odometer from zero, the board's clock from zero."""
+        self.encoder.distance_m = 0.0
+        self.clock_offset_ms = -int(round(now_s * 1000))
+        self.obu = self._boot()
 
     def board_ms(self, now_s: float) -> int:
         return int(round(now_s * 1000)) + self.clock_offset_ms

@@ -25,6 +25,7 @@ from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 
 log = logging.getLogger("cbtc.zone")
+_LEFT_BOOTS = 16   # boots of a train remembered as left: their recorded reports are refused
 
 
 @dataclass
@@ -48,6 +49,8 @@ class TrainState:
         self.report = None           # newest accepted report (dict)
         self.report_recv_s = None
         self.report_t_s = None       # controller time at which the board sampled it
+        self.boot = None             # boot id of the board's reports, and the boots it has left (newest last)
+        self.left_boots = ()
         self.last_report_seq = -1
         self.next_stop = None        # station name or None
         self.dwell_until_s = None
@@ -73,8 +76,21 @@ class TrainState:
     def train_id(self):
         return self.setup.train_id
 
+    def out_of_order(self, report):
+        """Why `report` must be dropped: of a boot this train has left, or not after the last one of its boot; ""
+        if it moves the picture forward (a new boot id is a restart of the board, never an old report after a
+        silence)."""
+        if report["boot"] == self.boot:
+            if report["seq"] <= self.last_report_seq:
+                return f"report seq {report['seq']} not after {self.last_report_seq} (replayed or reordered)"
+        elif report["boot"] in self.left_boots:
+            return f"report of boot {report['boot']}, which this train has left (replayed from before a restart)"
+        return ""
+
     def restart(self, estimator):
         """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
+        self.left_boots = (self.left_boots + (self.boot,))[-_LEFT_BOOTS:]
+        self.last_report_seq = -1
         self.estimator = estimator
         self.clock = BoardClock()
         self.report = None
@@ -152,17 +168,19 @@ class ZoneController:
             self.invalid_reports += 1
             log.warning("dropped report of train %s: %s", train_id, exc.reason)
             return
-        silent_s = None if state.report_recv_s is None else recv_s - state.report_recv_s
-        if report["seq"] <= state.last_report_seq and (silent_s is None or silent_s < 3.0):
+        reason = state.out_of_order(report)
+        if reason:
             state.reports_rejected += 1
-            state.last_reject = f"report seq {report['seq']} not after {state.last_report_seq} (replayed or reordered)"
-            log.warning("dropped report of train %s: %s", train_id, state.last_reject)
+            state.last_reject = reason
+            log.warning("dropped report of train %s: %s", train_id, reason)
             return
-        if report["seq"] <= state.last_report_seq:
-            # accepted after a silence with a lower seq: the board restarted; its clock and odometer began again
-            log.warning("train %s restarted (report seq %d after %d): locating it afresh", train_id, report["seq"],
-                        state.last_report_seq)
-            state.restart(self._estimator_factory(self.layout, state.setup.profile))
+        if report["boot"] != state.boot:
+            if state.boot is not None:
+                # a new boot: the board restarted; its clock, odometer and sequence began again
+                log.warning("train %s restarted (boot %d after %d): locating it afresh", train_id, report["boot"],
+                            state.boot)
+                state.restart(self._estimator_factory(self.layout, state.setup.profile))
+            state.boot = report["boot"]
         state.last_report_seq = report["seq"]
         state.clock.observe(report["t_ms"], recv_s)
         state.estimator.on_report(report, state.clock)
@@ -299,7 +317,7 @@ class ZoneController:
         state.cmd_seq += 1
         rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) else 0
         payload = wire.encode_command(
-            state.setup.key, state.train_id, state.cmd_seq, self.session_id, report["seq"],
+            state.setup.key, state.train_id, report["boot"], state.cmd_seq, self.session_id, report["seq"],
             int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
             max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms,
             max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))   # floored: the safe side
