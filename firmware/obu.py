@@ -47,6 +47,7 @@ DEFAULTS = {
 _HISTORY = const(12)     # reports remembered for matching commands to the report they are based on
 _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
 _US_WRAP = const(262144000)   # edge times (us) wrap with the board's ms at 2^18: small ints; spans are < 1 s
+_LEFT_SIDS = const(4)    # sessions remembered as left: a replayed command of any of them is refused
 _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
 
 
@@ -64,6 +65,7 @@ class OnboardUnit:
     guard_on = False
     guard_trips = 0
     trips = 0                # times the speed crossed the trip curve (emergency brake)
+    _left_sids = ()          # controller sessions this unit has left (newest last)
 
     def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
@@ -129,9 +131,17 @@ class OnboardUnit:
             if cmd["boot"] != self.boot_id:
                 raise wire.WireError("command of boot %d; this is boot %d (recorded before a restart?)"
                                      % (cmd["boot"], self.boot_id))
-            if cmd["sid"] == self.sid and cmd["seq"] <= self.cseq:
-                raise wire.WireError("replayed command: seq %d of session %d is not after %d"
-                                     % (cmd["seq"], cmd["sid"], self.cseq))
+            sid = cmd["sid"]
+            if sid == self.sid:
+                if cmd["seq"] <= self.cseq:
+                    raise wire.WireError("replayed command: seq %d of session %d is not after %d"
+                                         % (cmd["seq"], sid, self.cseq))
+            elif sid in self._left_sids:
+                raise wire.WireError("command of session %d, which this board has left for session %d"
+                                     % (sid, self.sid))
+            elif self.cmd is not None and cmd["rseq"] < self.cmd["rseq"]:
+                raise wire.WireError("new session %d is based on report %d, older than session %d's report %d"
+                                     % (sid, cmd["rseq"], self.sid, self.cmd["rseq"]))
             slot = cmd["rseq"] % _HISTORY
             if self._sent_seq[slot] != cmd["rseq"]:
                 raise wire.WireError("stale command: it is based on report %d, which is not among our last %d"
@@ -145,7 +155,10 @@ class OnboardUnit:
             self.last_reject = exc.reason
             self._rejected_since_report = True
             return
-        self.sid = cmd["sid"]
+        if sid != self.sid:   # sessions only move forward: the one left is never taken again
+            if self.sid >= 0:
+                self._left_sids = (self._left_sids + (self.sid,))[-_LEFT_SIDS:]
+            self.sid = sid
         self.cseq = cmd["seq"]
         self.cmd = cmd
         self.cmd_expiry_ms = self._sent_t[slot] + cmd["ttl_ms"]

@@ -203,7 +203,7 @@ print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
     assert peak < 30 * 1024, "leave the ESP8266 room for the network stack and umqtt"
 
 
-def test_a_command_recorded_before_a_reboot_is_refused_under_micropython():
+def test_replays_and_lenient_commands_are_refused_under_micropython():
     script = PRELUDE + """
 now = 20
 unit.step(now)
@@ -215,6 +215,24 @@ unit.step(20)
 assert last_report()["seq"] == 0 and last_report()["boot"] == 10
 unit.on_message("cbtc/train/A/cmd", rec, 20)
 assert unit.cmd is None and unit.rejected == 1 and "boot 9; this is boot 10" in unit.last_reject, unit.last_reject
+unit.step(70)                                   # sessions only move forward
+r = last_report()["seq"]
+c1 = wire.encode_command(KEY, "A", 10, 1, 1, r, 500, 3000, 800, 600, 800)
+unit.on_message("cbtc/train/A/cmd", c1, 70)
+unit.on_message("cbtc/train/A/cmd", wire.encode_command(KEY, "A", 10, 1, 2, r, 500, 300, 800, 600, 800), 70)
+assert unit.sid == 2 and unit.eoa_mm == 300
+unit.on_message("cbtc/train/A/cmd", c1, 70)
+assert unit.sid == 2 and unit.eoa_mm == 300 and "has left" in unit.last_reject, unit.last_reject
+import json                                     # strict decoding on the board: a bool is not the version
+body = json.loads(c1[:c1.rfind(b"#")])
+for field, value in (("v", True), ("v", 1.0), ("eoa_mm", 1.5), ("boot", True), ("zz", 1)):
+    bad = dict(body)
+    bad[field] = value
+    try:
+        wire.decode_command(KEY, "cbtc/train/A/cmd", wire.seal(KEY, "cbtc/train/A/cmd", json.dumps(bad).encode()))
+        raise SystemExit("accepted %s=%r" % (field, value))
+    except wire.WireError as e:
+        assert repr(value) in e.reason or field in e.reason, e.reason
 print("OK")
 """
     rc, out, err = run_mpy(script, heap="64K")

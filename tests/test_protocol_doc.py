@@ -94,3 +94,13 @@ def _doc_range(bounds):
     lo, hi = bounds
     text = lambda n: "2^31-1" if n == 2 ** 31 - 1 else ("-(2^31-1)" if n == -(2 ** 31 - 1) else str(n))
     return f"[{text(lo)}, {text(hi)}]"
+
+
+def test_documented_replay_windows_are_the_coded_ones():
+    from cbtc.firmware import obu
+    from cbtc.zone import controller
+
+    doc = " ".join(open(DOC).read().split())
+    assert f"one of the board's last {obu._HISTORY} reports" in doc
+    assert f"a session the board has left (the last {obu._LEFT_SIDS})" in doc
+    assert f"the train's left boots (the last {controller._LEFT_BOOTS})" in doc
