@@ -6,6 +6,11 @@ for long here except `connect`, which opens a socket: the main loop calls it onl
 """
 
 try:
+    from . import wire  # the controller imports the firmware as the package cbtc.firmware
+except ImportError:
+    import wire  # a board holds the firmware's modules at the top level
+
+try:
     from micropython import const
 except ImportError:  # CPython
     def const(value):
@@ -40,7 +45,7 @@ class Link:
 
     def due(self, now_ms):
         """True when disconnected and the backoff since the last failure has passed (board ms)."""
-        return not self.connected and now_ms >= self._next_try_ms
+        return not self.connected and wire.wrap_diff(now_ms, self._next_try_ms) >= 0
 
     def connect(self, now_ms):
         """One attempt: connect, TCP_NODELAY, `online` retained, subscribe. True on success."""
@@ -99,5 +104,5 @@ class Link:
                 sock.close()
             except OSError:
                 pass
-        self._next_try_ms = now_ms + self._backoff_ms
+        self._next_try_ms = wire.wrap_add(now_ms, self._backoff_ms)
         self._backoff_ms = min(self._backoff_ms * 2, self.backoff_ms[1])

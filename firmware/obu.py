@@ -133,20 +133,20 @@ class OnboardUnit:
                                      % (cmd["boot"], self.boot_id))
             sid = cmd["sid"]
             if sid == self.sid:
-                if cmd["seq"] <= self.cseq:
+                if wire.wrap_diff(cmd["seq"], self.cseq) <= 0:
                     raise wire.WireError("replayed command: seq %d of session %d is not after %d"
                                          % (cmd["seq"], sid, self.cseq))
             elif sid in self._left_sids:
                 raise wire.WireError("command of session %d, which this board has left for session %d"
                                      % (sid, self.sid))
-            elif self.cmd is not None and cmd["rseq"] < self.cmd["rseq"]:
+            elif self.cmd is not None and wire.wrap_diff(cmd["rseq"], self.cmd["rseq"]) < 0:
                 raise wire.WireError("new session %d is based on report %d, older than session %d's report %d"
                                      % (sid, cmd["rseq"], self.sid, self.cmd["rseq"]))
             slot = cmd["rseq"] % _HISTORY
             if self._sent_seq[slot] != cmd["rseq"]:
                 raise wire.WireError("stale command: it is based on report %d, which is not among our last %d"
                                      % (cmd["rseq"], _HISTORY))
-            age_ms = now_ms - self._sent_t[slot]
+            age_ms = wire.wrap_diff(now_ms, self._sent_t[slot])
             if age_ms > self.cfg["max_data_age_ms"]:
                 raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)"
                                      % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
@@ -161,29 +161,31 @@ class OnboardUnit:
             self.sid = sid
         self.cseq = cmd["seq"]
         self.cmd = cmd
-        self.cmd_expiry_ms = self._sent_t[slot] + cmd["ttl_ms"]
+        self.cmd_expiry_ms = wire.wrap_add(self._sent_t[slot], cmd["ttl_ms"])
         self.eoa_mm = cmd["eoa_mm"]
 
     def command_valid(self, now_ms):
-        return self.cmd is not None and now_ms < self.cmd_expiry_ms
+        return self.cmd is not None and wire.wrap_diff(now_ms, self.cmd_expiry_ms) < 0
 
     # --- the loop -----------------------------------------------------------------------------------------------
 
     def step(self, now_ms):
-        """One pass of the loop at board time `now_ms` (ms)."""
-        dt_s = 0.0 if self._last_step_ms is None else (now_ms - self._last_step_ms) / 1000.0
+        """One pass of the loop at board time `now_ms` (ms, modulo 2^30: wire.wrap_diff compares board times)."""
+        if self._last_step_ms is None:   # the first pass: the board's times start now, whatever its clock reads
+            self._last_step_ms = self._next_report_ms = self._last_move_ms = now_ms
+        dt_s = wire.wrap_diff(now_ms, self._last_step_ms) / 1000.0
         self._last_step_ms = now_ms
         self._sample(now_ms)
         self._control(now_ms, dt_s)
-        if now_ms >= self._next_report_ms:
+        if wire.wrap_diff(now_ms, self._next_report_ms) >= 0:
             self._report(now_ms)
             # keep the cadence (a loop period that does not divide the report period must not stretch it); restart
             # it after a stall. The controller asks for faster reports while a train behind follows this one closely
             period = self.cfg["report_ms"]
             if self.command_valid(now_ms) and self.cmd["rpt_ms"]:
                 period = self.cmd["rpt_ms"]
-            due = self._next_report_ms + period
-            self._next_report_ms = due if due > now_ms else now_ms + period
+            due = wire.wrap_add(self._next_report_ms, period)
+            self._next_report_ms = due if wire.wrap_diff(due, now_ms) > 0 else wire.wrap_add(now_ms, period)
 
     def _sensor_failed(self, name, exc):
         self.sensor_errors += 1
@@ -300,7 +302,7 @@ class OnboardUnit:
     def _control(self, now_ms, dt_s):
         cfg = self.cfg
         # collision guard: a fresh measured gap below guard_limit_mm brakes whatever the commands say
-        if (self.gap_mm is not None and now_ms - self.gap_t_ms <= cfg["guard_fresh_ms"]
+        if (self.gap_mm is not None and wire.wrap_diff(now_ms, self.gap_t_ms) <= cfg["guard_fresh_ms"]
                 and self.gap_mm < self.guard_limit_mm()):
             if not self.guard_on:
                 self.guard_trips += 1
@@ -381,13 +383,13 @@ class OnboardUnit:
     def _report(self, now_ms):
         faults = []
         last_fix = getattr(self.ips, "last_fix_ms", None)
-        if last_fix is None or now_ms - last_fix > self.cfg["ips_silent_ms"]:
+        if last_fix is None or wire.wrap_diff(now_ms, last_fix) > self.cfg["ips_silent_ms"]:
             faults.append("ips_silent")
         if getattr(self.ips, "crc_errors", 0):
             faults.append("ips_crc")
         if not getattr(self.rfid, "present", True):
             faults.append("rfid_absent")
-        if self.duty_pct > 30 and now_ms - self._last_move_ms > self.cfg["stall_ms"]:
+        if self.duty_pct > 30 and wire.wrap_diff(now_ms, self._last_move_ms) > self.cfg["stall_ms"]:
             faults.append("enc_stall")
         if self.cmd is not None and not self.command_valid(now_ms):
             faults.append("cmd_timeout")
@@ -405,7 +407,7 @@ class OnboardUnit:
         payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
                                      self.duty_pct, self.mode, self.cseq, self._ips_fix, self._tags, self.faults,
                                      self._rng_report)
-        self.seq = seq + 1
+        self.seq = wire.wrap_add(seq, 1)
         self._ips_fix = None
         if self._rng_report is not None:
             self._rng_report = None

@@ -1,23 +1,26 @@
 """The train board's loop (main.py calls `main()`): boot (startup.py, then assemble.py), then the loop.
 
-The loop polls MQTT without blocking, keeps a monotonic, non-wrapping uptime (ms, `uptime_ms`) and hands it to the
-OnboardUnit. The hardware watchdog is fed only after a healthy pass (no exception, the previous pass recent). When
-the broker is lost the loop goes on (the unit brakes when its command expires); reconnect attempts, which may block,
-are made with backoff and only while the motor is held braked. MicroPython only (it runs on the board).
+The loop polls MQTT without blocking, keeps a monotonic uptime (ms, `uptime_ms`, modulo 2^30 by the wire's rule:
+a small int for ever) and hands it to the OnboardUnit. The hardware watchdog is fed only after a healthy pass (no
+exception, the previous pass recent). When the broker is lost the loop goes on (the unit brakes when its command
+expires); reconnect attempts, which may block, are made with backoff and only while the motor is held braked.
+MicroPython only (it runs on the board).
 """
 
 import gc
 import sys
 from time import sleep_ms, ticks_diff, ticks_ms
 
+import wire
+
 VERSION = "0.1.0"
 _clock = [ticks_ms(), 0]   # ticks_ms() at the last reading, board ms since boot
 
 
 def uptime_ms():
-    """Board time in ms since boot that never wraps: ticks_ms differences summed into a Python int."""
+    """Board time in ms since boot, modulo 2^30 (wire.wrap_add), whatever the port's own ticks period."""
     t = ticks_ms()
-    _clock[1] += ticks_diff(t, _clock[0])
+    _clock[1] = wire.wrap_add(_clock[1], ticks_diff(t, _clock[0]))
     _clock[0] = t
     return _clock[1]
 
@@ -33,7 +36,7 @@ def run(config, now, unit, link, maint, watchdog=None):
     last_ms = now()
     while True:
         now_ms = now()
-        healthy = now_ms - last_ms <= config["max_pass_ms"]
+        healthy = wire.wrap_diff(now_ms, last_ms) <= config["max_pass_ms"]
         last_ms = now_ms
         try:
             if link.connected:
@@ -66,8 +69,8 @@ def run(config, now, unit, link, maint, watchdog=None):
                     import os
 
                     os.dupterm(None, 1)
-        if now_ms >= next_stats_ms:
-            next_stats_ms = now_ms + config["stats_ms"]
+        if wire.wrap_diff(now_ms, next_stats_ms) >= 0:
+            next_stats_ms = wire.wrap_add(now_ms, config["stats_ms"])
             print("stats: up_ms %d heap_peak %d heap_live %d heap_free %d link %s losses %d mode %s errors %d "
                   "sensor_errors %d" % (now_ms, peak, live, gc.mem_free(), "up" if link.connected else "down",
                                         link.losses, unit.mode, errors, unit.sensor_errors))

@@ -29,7 +29,9 @@ VERSION = const(1)
 ODO_MM_PER_M_MIN = const(500)    # the encoder scales a command may state (odometer mm per true m): no wheel is
 ODO_MM_PER_M_MAX = const(2000)   # off by a factor of two
 MAX_TAGS = const(4)
-INT31 = const(2147483647)     # largest sequence number, time or odometer value
+INT31 = const(2147483647)     # largest session id or odometer value
+WRAP_MASK = const(0x3FFFFFFF) # times (ms) and sequence numbers on the wire count modulo 2^30 (12.4 days of ms)
+_HALF = const(0x20000000)
 BOOT_MAX = const(1073741823)  # boot ids are 1..2^30-1: a small int on the board
 _MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
 _MAX_PAYLOAD = const(1024)    # longest payload accepted (bytes)
@@ -72,6 +74,26 @@ def check_train_id(train_id):
         if ch not in "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-":
             raise WireError("train id %r has %r: use letters, digits, '_' or '-'" % (train_id, ch))
     return train_id
+
+
+# --- counters that wrap ---------------------------------------------------------------------------------------
+
+def wrap_diff(a, b):
+    """a - b for two counters modulo 2^30 (board times in ms, sequence numbers), in [-2^29, 2^29): how far a is
+    after b, also across the wrap. Small ints throughout, as MicroPython's ticks_diff."""
+    d = a - b
+    if d >= _HALF:
+        return d - _HALF - _HALF
+    if d < -_HALF:
+        return d + _HALF + _HALF
+    return d
+
+
+def wrap_add(a, b):
+    """a + b modulo 2^30 for a counter a in [0, 2^30) and a step b in [0, 2^30)."""
+    if a > WRAP_MASK - b:
+        return a - _HALF - _HALF + b
+    return a + b
 
 
 # --- authentication -------------------------------------------------------------------------------------------
@@ -186,7 +208,7 @@ def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode
 
 # --- commands --------------------------------------------------------------------------------------------------
 # a command's fields, all integers, all required: (name, lowest, highest) flat
-COMMAND_INTS = ("boot", 1, BOOT_MAX, "seq", 0, INT31, "sid", 0, INT31, "rseq", 0, INT31, "v_mmps", 0, 5000,
+COMMAND_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "sid", 0, INT31, "rseq", 0, WRAP_MASK, "v_mmps", 0, 5000,
                 "eoa_mm", -INT31, INT31,
                 "ttl_ms", 1, 10000, "acc", 1, 10000, "dec", 1, 10000, "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
                 "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX)

@@ -13,6 +13,7 @@ except ImportError:
     import wire  # top level, as under the MicroPython unix port
 
 BOOT_MAX, INT31, MAX_TAGS, VERSION, WireError = wire.BOOT_MAX, wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
+WRAP_MASK = wire.WRAP_MASK
 check_fields, check_ints, decode_sealed = wire.check_fields, wire.check_ints, wire.decode_sealed
 seal, topic_command = wire.seal, wire.topic_command
 
@@ -37,11 +38,11 @@ def topic_zone_status(zone_id):
 # --- reports ---------------------------------------------------------------------------------------------------
 
 # a report's integer fields, all required: (name, lowest, highest) flat; then its other fields (`rng` optional)
-REPORT_INTS = ("boot", 1, BOOT_MAX, "seq", 0, INT31, "t_ms", 0, INT31, "odo_mm", -INT31, INT31,
+REPORT_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "t_ms", 0, WRAP_MASK, "odo_mm", -INT31, INT31,
                "v_mmps", -20000, 20000, "duty", -100, 100,
-               "cseq", -1, INT31)
+               "cseq", -1, WRAP_MASK)
 REPORT_OTHER = ("mode", "ips", "tags", "rng", "flt")
-TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, INT31)
+TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, WRAP_MASK)
 UID_HEX_LENGTHS = (8, 14, 20)   # MFRC522 uids of 4, 7 and 10 bytes
 _HEX = "0123456789abcdefABCDEF"
 
@@ -84,7 +85,7 @@ def check_report(msg, topic):
             check_fields({name: 0}, REPORT_INTS, topic)
     if msg.get("mode") not in MODES:
         raise WireError("field 'mode' on %s is %r, not one of %s" % (topic, msg.get("mode"), ", ".join(MODES)))
-    _null_or_ints(msg, "ips", ("t_ms", 0, INT31, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic, True)
+    _null_or_ints(msg, "ips", ("t_ms", 0, WRAP_MASK, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic, True)
     tags = msg.get("tags")
     if not isinstance(tags, list) or len(tags) > MAX_TAGS:
         raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms(, data)]"
@@ -95,7 +96,7 @@ def check_report(msg, topic):
             raise WireError("entry %r of 'tags' on %s must be [uid: 8, 14 or 20 hex digits, odo_mm, t_ms] or "
                             "[uid, odo_mm, t_ms, data: 32 hex digits of the balise telegram]" % (tag, topic))
         check_ints(tag[1:3], TAG_INTS, topic, "tags")
-    _null_or_ints(msg, "rng", ("t_ms", 0, INT31, "gap_mm", -100000, _POS_MM), topic, False)
+    _null_or_ints(msg, "rng", ("t_ms", 0, WRAP_MASK, "gap_mm", -100000, _POS_MM), topic, False)
     faults = msg.get("flt")
     bad = not isinstance(faults, list)
     for name in [] if bad else faults:

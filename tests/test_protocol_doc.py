@@ -92,7 +92,8 @@ def test_documented_integer_ranges_are_the_checked_ones():
 
 def _doc_range(bounds):
     lo, hi = bounds
-    text = lambda n: "2^31-1" if n == 2 ** 31 - 1 else ("-(2^31-1)" if n == -(2 ** 31 - 1) else str(n))
+    powers = {2 ** 31 - 1: "2^31-1", -(2 ** 31 - 1): "-(2^31-1)", 2 ** 30 - 1: "2^30-1"}
+    text = lambda n: powers.get(n, str(n))
     return f"[{text(lo)}, {text(hi)}]"
 
 

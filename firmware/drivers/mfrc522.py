@@ -19,10 +19,9 @@ except ImportError:  # CPython
         return value
 
 try:
-    from time import ticks_diff
-except ImportError:  # CPython: plain integers do not wrap
-    def ticks_diff(end, start):
-        return end - start
+    from cbtc.firmware import wire  # the controller's package
+except ImportError:
+    import wire  # a board holds the firmware's modules at the top level
 
 # registers
 _COMMAND = const(0x01)        # CommandReg: starts and stops commands
@@ -213,13 +212,13 @@ class Mfrc522:
         """
         if not self.present:
             return None
-        if self._last_poll_ms is not None and ticks_diff(now_ms, self._last_poll_ms) < _POLL_MS:
+        if self._last_poll_ms is not None and wire.wrap_diff(now_ms, self._last_poll_ms) < _POLL_MS:
             return None
         self._last_poll_ms = now_ms
         uid = self.read_uid()
         if uid is None:
             return None
-        fresh = uid != self._last_uid or ticks_diff(now_ms, self._last_seen_ms) >= _ABSENT_MS
+        fresh = uid != self._last_uid or wire.wrap_diff(now_ms, self._last_seen_ms) >= _ABSENT_MS
         self._last_uid = uid
         self._last_seen_ms = now_ms
         return uid if fresh else None

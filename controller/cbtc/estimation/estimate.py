@@ -2,6 +2,8 @@
 
 from dataclasses import dataclass
 
+from cbtc.protocol import wire
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -24,22 +26,37 @@ class Estimate:
 
 
 class BoardClock:
-    """Maps a board's uptime (ms) to controller time (s) without clock synchronisation.
+    """Maps a board's uptime (ms, modulo 2^30 on the wire) to controller time (s) without clock synchronisation.
 
-    offset = min over reports of (receive time - board time): the least-delayed report bounds the offset from above,
-    so board times convert to controller times that are never later than the truth by more than the one-way
-    latency of that best report. Pure: receive times are passed in.
+    Board times are unwrapped against the newest one observed (wire.wrap_diff), so a board up for months maps as on
+    its first day. offset = min over reports of (receive time - board time): the least-delayed report bounds the
+    offset from above, so board times convert to controller times that are never later than the truth by more than
+    the one-way latency of that best report. Pure: receive times are passed in.
     """
 
     def __init__(self):
         self.offset_s = None
+        self._ref_ms = None          # the newest board time observed, as on the wire, and its unwrapped value
+        self._ref_unwrapped_ms = 0
+
+    def board_s(self, board_ms: int) -> float:
+        """`board_ms` (a wire time near the newest observed) on the board's own unwrapped time line (s)."""
+        if self._ref_ms is None:
+            raise ValueError("BoardClock: no report observed yet")
+        return (self._ref_unwrapped_ms + wire.wrap_diff(board_ms, self._ref_ms)) / 1000.0
 
     def observe(self, board_ms: int, recv_s: float) -> None:
-        candidate = recv_s - board_ms / 1000.0
+        if self._ref_ms is None:
+            self._ref_ms, self._ref_unwrapped_ms = board_ms, board_ms
+        else:
+            ahead_ms = wire.wrap_diff(board_ms, self._ref_ms)
+            if ahead_ms > 0:
+                self._ref_ms, self._ref_unwrapped_ms = board_ms, self._ref_unwrapped_ms + ahead_ms
+        candidate = recv_s - self.board_s(board_ms)
         if self.offset_s is None or candidate < self.offset_s:
             self.offset_s = candidate
 
     def to_controller_s(self, board_ms: int) -> float:
         if self.offset_s is None:
             raise ValueError("BoardClock: no report observed yet")
-        return board_ms / 1000.0 + self.offset_s
+        return self.board_s(board_ms) + self.offset_s

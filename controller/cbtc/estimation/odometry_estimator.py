@@ -10,6 +10,7 @@ import math
 
 from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.fix_consensus import agreeing_anchor
+from cbtc.protocol import wire
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
@@ -67,7 +68,7 @@ class OdometryEstimator:
         fix_t_ms, x_mm, y_mm = report["ips"]
         x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
         # the fix was sampled latency before it reached the board
-        age_s = (report["t_ms"] - fix_t_ms) / 1000.0 + self.profile.ips_latency_s
+        age_s = wire.wrap_diff(report["t_ms"], fix_t_ms) / 1000.0 + self.profile.ips_latency_s
         odo_fix_mm = odo_mm - v_mps * age_s * 1000.0
         r_m2 = self.profile.ips_sigma_m ** 2
         if not self.localized:

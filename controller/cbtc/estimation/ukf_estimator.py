@@ -188,17 +188,17 @@ class UkfEstimator:
     def on_report(self, report: dict, board_clock) -> None:
         """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
         self._clock = board_clock
-        t_s = report["t_ms"] / 1000.0
+        t_s = board_clock.board_s(report["t_ms"])   # the board's time line, unwrapped
         new = [_Event(t_s, "odo", (report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0))]
         for entry in report["tags"]:
             tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
             if tag_s_m is None:
                 continue
-            new.append(_Event(entry[2] / 1000.0, "tag", (tag_s_m, entry[1] / 1000.0)))
+            new.append(_Event(board_clock.board_s(entry[2]), "tag", (tag_s_m, entry[1] / 1000.0)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
-            new.append(_Event(fix_t_ms / 1000.0 - self.profile.ips_latency_s, "ips", (x_m, y_m)))
+            new.append(_Event(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
 
     def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:

@@ -68,7 +68,7 @@ class VirtualTrain:
         self.obu = self._boot()
 
     def board_ms(self, now_s: float) -> int:
-        return int(round(now_s * 1000)) + self.clock_offset_ms
+        return (int(round(now_s * 1000)) + self.clock_offset_ms) & wire.WRAP_MASK   # wraps as a board's time does
 
     def _publish(self, topic, payload):
         self.client.publish(topic, payload)

@@ -51,7 +51,7 @@ class TrainState:
         self.report_t_s = None       # controller time at which the board sampled it
         self.boot = None             # boot id of the board's reports, and the boots it has left (newest last)
         self.left_boots = ()
-        self.last_report_seq = -1
+        self.last_report_seq = None  # newest accepted report seq of the current boot
         self.next_stop = None        # station name or None
         self.dwell_until_s = None
         self.dwells = 0
@@ -81,7 +81,7 @@ class TrainState:
         if it moves the picture forward (a new boot id is a restart of the board, never an old report after a
         silence)."""
         if report["boot"] == self.boot:
-            if report["seq"] <= self.last_report_seq:
+            if self.last_report_seq is not None and wire.wrap_diff(report["seq"], self.last_report_seq) <= 0:
                 return f"report seq {report['seq']} not after {self.last_report_seq} (replayed or reordered)"
         elif report["boot"] in self.left_boots:
             return f"report of boot {report['boot']}, which this train has left (replayed from before a restart)"
@@ -90,7 +90,7 @@ class TrainState:
     def restart(self, estimator):
         """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
         self.left_boots = (self.left_boots + (self.boot,))[-_LEFT_BOOTS:]
-        self.last_report_seq = -1
+        self.last_report_seq = None
         self.estimator = estimator
         self.clock = BoardClock()
         self.report = None
@@ -314,7 +314,7 @@ class ZoneController:
         else:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
-        state.cmd_seq += 1
+        state.cmd_seq = wire.wrap_add(state.cmd_seq, 1)
         rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) else 0
         payload = wire.encode_command(
             state.setup.key, state.train_id, report["boot"], state.cmd_seq, self.session_id, report["seq"],
