@@ -8,7 +8,8 @@ Data code 0x0011 is a position in millimetres, 22 payload bytes: u32 timestamp, 
 u8 address, i16 angle, 2 reserved. `poll(now_ms)` reads only what `uart.any()` says is waiting (it never blocks),
 parses every complete frame and returns the newest position fix as (t_ms, x_mm, y_mm, z_mm, flags), stamped with
 `now_ms` (the board's monotonic ms when the frame was read), or None. A bad header, an absurd length or a bad CRC
-never stalls the parser: it drops one byte and looks for the next header.
+never stalls the parser: it drops one byte and looks for the next header; a header whose claimed length has not
+arrived yet never holds back a whole good frame behind it.
 """
 
 import struct
@@ -72,45 +73,61 @@ class IpsReceiver:
             self.last_fix_ms = now_ms
         return fix
 
+    def _frame_end(self, i, n):
+        """At buf[i]: the index just past a whole frame with a good CRC there; 0 if the bytes held so far could
+        still be the start of one (wait for more); -1 if it is no frame; -2 if its CRC is wrong."""
+        buf = self.buf
+        if buf[i] != _SYNC:
+            return -1
+        if n - i < 2:
+            return 0
+        if buf[i + 1] != _TYPE:
+            return -1
+        if n - i < _HEADER:
+            return 0
+        code = buf[i + 2] | (buf[i + 3] << 8)
+        length = buf[i + 4]
+        if length > _MAX_PAYLOAD or (code == _CODE_POS_MM and length != _POS_LEN):
+            return -1
+        end = i + _HEADER + length
+        if n - end < 2:
+            return 0
+        if crc16_modbus(buf, i, end) != buf[end] | (buf[end + 1] << 8):
+            return -2
+        return end + 2
+
     def _parse(self, now_ms):
         buf = self.buf
         n = self._len
         i = 0
         fix = None
         while i < n:
-            if buf[i] != _SYNC:
+            end = self._frame_end(i, n)
+            if end == 0:
+                # incomplete; but a whole good frame further on proves this header false (FF 47 inside other data
+                # claiming a length): skip to it rather than hold it back until the claimed length has arrived
+                j = i + 1
+                while j < n and self._frame_end(j, n) <= 0:
+                    j += 1
+                if j == n:
+                    break
+                self.garbage_bytes += j - i
+                i = j
+                continue
+            if end < 0:
+                if end == -2:
+                    self.crc_errors += 1
                 self.garbage_bytes += 1
                 i += 1
                 continue
-            if n - i < 2:
-                break
-            if buf[i + 1] != _TYPE:
-                self.garbage_bytes += 1
-                i += 1
-                continue
-            if n - i < _HEADER:
-                break
             code = buf[i + 2] | (buf[i + 3] << 8)
-            length = buf[i + 4]
-            if length > _MAX_PAYLOAD or (code == _CODE_POS_MM and length != _POS_LEN):
-                self.garbage_bytes += 1
-                i += 1
-                continue
-            end = i + _HEADER + length
-            if n - end < 2:
-                break
-            if crc16_modbus(buf, i, end) != buf[end] | (buf[end + 1] << 8):
-                self.crc_errors += 1
-                self.garbage_bytes += 1
-                i += 1
-                continue
             if code == _CODE_POS_MM:
                 _ts, x_mm, y_mm, z_mm, flags = struct.unpack_from("<IiiiB", buf, i + _HEADER)
                 fix = (now_ms, x_mm, y_mm, z_mm, flags)
                 self.frames_ok += 1
             else:
                 self.other_frames += 1
-            i = end + 2
+            i = end
         if i:
             buf[0:n - i] = buf[i:n]
             self._len = n - i

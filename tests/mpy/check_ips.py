@@ -119,3 +119,20 @@ def check_ips_other_code_and_newest_wins():
     feed(uart, frame(0x0003, bytes(range(16))) + position(1, 1, 1) + position(2, 2, 2))
     assert ips.poll(9) == (9, 2, 2, 2, 0)
     assert ips.other_frames == 1 and ips.frames_ok == 2
+
+
+def check_ips_false_header_never_holds_a_real_frame_back():
+    for claimed in (22, 40, 64):                         # FF 47 inside other data, claiming a length up to 64
+        uart, ips = _ips()
+        false = bytes([0xFF, 0x47, 0x03, 0x00, claimed])
+        feed(uart, false + position(12, 34, 56))
+        assert ips.poll(100) == (100, 12, 34, 56, 0), claimed   # in the same poll, not after the claim has arrived
+        assert ips.garbage_bytes == len(false) and ips.frames_ok == 1
+        feed(uart, position(13, 35, 57))                 # and the next one as usual
+        assert ips.poll(110) == (110, 13, 35, 57, 0)
+    uart, ips = _ips()                                   # a real frame still arriving is waited for, not skipped
+    raw = position(7, 8, 9)
+    feed(uart, raw[:20])
+    assert ips.poll(200) is None and ips.garbage_bytes == 0
+    feed(uart, raw[20:])
+    assert ips.poll(210) == (210, 7, 8, 9, 0)
