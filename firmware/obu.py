@@ -139,8 +139,8 @@ class OnboardUnit:
             elif sid in self._left_sids:
                 raise wire.WireError("command of session %d, which this board has left for session %d"
                                      % (sid, self.sid))
-            elif self.cmd is not None and wire.wrap_diff(cmd["rseq"], self.cmd["rseq"]) < 0:
-                raise wire.WireError("new session %d is based on report %d, older than session %d's report %d"
+            elif self.cmd is not None and wire.wrap_diff(cmd["rseq"], self.cmd["rseq"]) <= 0:
+                raise wire.WireError("new session %d is based on report %d, not after session %d's report %d"
                                      % (sid, cmd["rseq"], self.sid, self.cmd["rseq"]))
             slot = cmd["rseq"] % _HISTORY
             if self._sent_seq[slot] != cmd["rseq"]:

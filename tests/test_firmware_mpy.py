@@ -219,9 +219,11 @@ unit.step(70)                                   # sessions only move forward
 r = last_report()["seq"]
 c1 = wire.encode_command(KEY, "A", 10, 1, 1, r, 500, 3000, 800, 600, 800)
 unit.on_message("cbtc/train/A/cmd", c1, 70)
-unit.on_message("cbtc/train/A/cmd", wire.encode_command(KEY, "A", 10, 1, 2, r, 500, 300, 800, 600, 800), 70)
-assert unit.sid == 2 and unit.eoa_mm == 300
-unit.on_message("cbtc/train/A/cmd", c1, 70)
+unit.step(130)
+r = last_report()["seq"]
+unit.on_message("cbtc/train/A/cmd", wire.encode_command(KEY, "A", 10, 1, 2, r, 500, 300, 800, 600, 800), 130)
+assert unit.sid == 2 and unit.eoa_mm == 300, unit.last_reject
+unit.on_message("cbtc/train/A/cmd", c1, 130)
 assert unit.sid == 2 and unit.eoa_mm == 300 and "has left" in unit.last_reject, unit.last_reject
 import json                                     # strict decoding on the board: a bool is not the version
 body = json.loads(c1[:c1.rfind(b"#")])

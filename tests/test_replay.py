@@ -84,17 +84,20 @@ def test_a_session_the_board_has_left_is_never_taken_again():
     old = [bench.command(sid=1, eoa_mm=3000)]
     bench.step()
     old.append(bench.command(sid=1, eoa_mm=3000))          # the old controller's last command, for the newest report
-    bench.command(sid=2, seq=1, eoa_mm=300)                 # a restarted controller answers the same report
+    bench.command(sid=2, seq=1, eoa_mm=300)                 # a restarted controller answering the same report waits
+    assert bench.unit.sid == 1 and "not after session 1's report" in bench.unit.last_reject
+    bench.step(ms=60)
+    bench.command(sid=2, seq=2, eoa_mm=300)                 # for the next report
     assert bench.unit.sid == 2 and bench.unit.eoa_mm == 300
     for payload in old * 3:                                 # replays of the old session, alternating with the new
         bench.unit.on_message(CMD, payload, bench.now_ms)
         assert "session 1, which this board has left" in bench.unit.last_reject
         bench.command(sid=2, eoa_mm=300)
         assert bench.unit.sid == 2 and bench.unit.eoa_mm == 300
-    assert bench.unit.rejected == 6
+    assert bench.unit.rejected == 7
 
 
-def test_a_new_session_must_rest_on_a_report_no_older_than_the_current_command():
+def test_a_new_session_must_rest_on_a_report_after_the_current_command():
     bench = Bench()
     bench.step()
     first = bench.last_report()["seq"]
@@ -102,4 +105,4 @@ def test_a_new_session_must_rest_on_a_report_no_older_than_the_current_command()
     assert bench.last_report()["seq"] == first + 1
     bench.command(sid=1)
     bench.command(sid=3, seq=1, rseq=first)
-    assert bench.unit.sid == 1 and "older than session 1's report" in bench.unit.last_reject
+    assert bench.unit.sid == 1 and "not after session 1's report" in bench.unit.last_reject

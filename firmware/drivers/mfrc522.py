@@ -6,8 +6,9 @@ read. A reader that does not answer (version register not one of the known chips
 `present` False; then `poll` returns None and nothing ever raises.
 
 A read runs REQA, then anticollision and SELECT at cascade level 1 and, for a 7-byte UID (NTAG, Ultralight), level
-2. When the tag is a Type 2 tag (SAK 0x00: NTAG213/215, Ultralight), it then READs pages 4-7: a balise's 16 data
-bytes, which hold its Hamming-coded telegram (position and id, see firmware/telegram.py); they are kept as 32 hex
+2, and for a 10-byte one level 3; a uid is read whole or not at all. When the tag is a Type 2 tag (SAK 0x00:
+NTAG213/215, Ultralight), it then READs pages 4-7: a balise's 16 data bytes, which hold its Hamming-coded telegram
+(position and id, see firmware/telegram.py); they are kept as 32 hex
 digits in `data` (None for other tags, such as MIFARE Classic, or when the answer's CRC is wrong). Frames after the
 anticollision carry ISO 14443A's CRC_A, computed and checked here.
 """
@@ -57,6 +58,7 @@ _ANTENNA_ON = const(0x03)     # TxControlReg: TX1 and TX2 on
 _REQA = const(0x26)           # request (7-bit short frame): idle cards answer with ATQA
 _SEL_CL1 = const(0x93)        # select / anticollision, cascade level 1
 _SEL_CL2 = const(0x95)        # select / anticollision, cascade level 2
+_SEL_CL3 = const(0x97)        # select / anticollision, cascade level 3 (10-byte uids)
 _NVB_ANTICOLL = const(0x20)   # number of valid bits: 2 bytes, ask for the whole UID
 _NVB_SELECT = const(0x70)     # number of valid bits: 7 bytes, select this UID
 _CASCADE_TAG = const(0x88)    # first UID byte at level 1 when the UID goes on at the next level
@@ -178,8 +180,8 @@ class Mfrc522:
         return answer[:-2]
 
     def read_uid(self):
-        """Upper-case hex UID (8 or 14 characters) of a tag in the field, or None (no tag, a garbled answer, no
-        reader); `data` then holds a Type 2 tag's pages 4-7 (see the module's description)."""
+        """Upper-case hex UID (8, 14 or 20 characters: 4, 7 or 10 bytes) of a tag in the field, or None (no tag, a
+        garbled answer, no reader); `data` then holds a Type 2 tag's pages 4-7 (see the module's description)."""
         self.data = None
         if not self.present:
             return None
@@ -187,18 +189,23 @@ class Mfrc522:
         if atqa is None or len(atqa) != 2:
             return None
         uid = ""
-        for level in (_SEL_CL1, _SEL_CL2):
+        more = True
+        for level in (_SEL_CL1, _SEL_CL2, _SEL_CL3):
             part = self._transceive(bytes((level, _NVB_ANTICOLL)), 0)
             if part is None or len(part) != 5 or part[0] ^ part[1] ^ part[2] ^ part[3] != part[4]:
                 return None
             sak = self._call(bytes((level, _NVB_SELECT)) + part)
             if sak is None or len(sak) != 1:
                 return None
-            more = sak[0] & _SAK_MORE and part[0] == _CASCADE_TAG
+            more = sak[0] & _SAK_MORE
+            if more and part[0] != _CASCADE_TAG:   # more to come, but no cascade tag: a garbled answer
+                return None
             for byte in part[1:4] if more else part[:4]:
                 uid += "%02X" % byte
             if not more:
                 break
+        if more:   # still incomplete after three levels: no card has such a uid
+            return None
         if sak[0] == 0:   # Type 2: read the balise's pages
             pages = self._call(bytes((_READ, _BALISE_PAGE)))
             if pages is not None and len(pages) == 16:

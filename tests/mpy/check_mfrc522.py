@@ -112,3 +112,11 @@ def check_mfrc522_classic_card_has_no_balise_data():
     chip.uid = bytes([0xDE, 0xAD, 0xBE, 0xEF])
     chip.sak = 0x08                                                # MIFARE Classic 1K: no READ without a key
     assert reader.read_uid() == "DEADBEEF" and reader.data is None
+
+
+def check_mfrc522_ten_byte_uid_reads_whole_or_not_at_all():
+    chip, reader, _cs, _rst = _reader()
+    chip.uid = bytes(range(0x10, 0x1A))                  # three cascade levels
+    assert reader.read_uid() == "10111213141516171819"
+    chip.sak = 0x04                                      # the last level still claims more: incomplete, not a read
+    assert reader.read_uid() is None

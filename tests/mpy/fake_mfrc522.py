@@ -4,8 +4,9 @@ driver as the `spi` (write, write_readinto; transfer(tx) -> rx is one transactio
 It speaks the chip's SPI protocol: the first byte of a transaction is the address (reg << 1) & 0x7E, with 0x80 set
 for a read; in a read the chip answers byte k with the register named by byte k-1. It ignores the bus while chip
 select is high, keeps a FIFO, and runs Transceive when StartSend is set, as an ISO 14443A card in the field answers
-while the antenna is on: REQA (7-bit 0x26) gets the ATQA 0x0004; anticollision (0x93 / 0x95, 0x20) gets the UID part
-of that cascade level + BCC (a 7-byte `uid`: 0x88 and its first three bytes at level 1, the other four at level 2);
+while the antenna is on: REQA (7-bit 0x26) gets the ATQA 0x0004; anticollision (0x93 / 0x95 / 0x97, 0x20) gets the
+UID part of that cascade level + BCC (a 7-byte `uid`: 0x88 and its first three bytes at level 1, the other four at
+level 2; a 10-byte one: 0x88 and three bytes at levels 1 and 2, the last four at level 3);
 SELECT (level, 0x70, part, CRC_A) gets the SAK + CRC_A (0x04 at level 1 of a 7-byte UID, else `sak`); a Type 2 READ
 (0x30, page, CRC_A) gets 16 bytes of `memory` from that page + CRC_A (`corrupt_read` flips a bit in it). Anything
 else, or a frame with a wrong CRC_A, times out (TimerIRq). `absent_value` set to 0x00 or 0xFF makes it an unplugged
@@ -35,7 +36,7 @@ class FakeMfrc522:
         self.cs = cs
         self.version = version
         self.absent_value = None
-        self.uid = None                # 4 or 7 bytes of the card in the field, or None
+        self.uid = None                # 4, 7 or 10 bytes of the card in the field, or None
         self.sak = 0x00                # SAK of the card once its UID is complete: 0x00 Type 2 (NTAG), 0x08 Classic
         self.memory = bytearray(180)   # the card's pages (4 bytes each), for READ
         self.corrupt_bcc = False
@@ -117,7 +118,7 @@ class FakeMfrc522:
         if antenna and self.uid is not None:
             if sent == [_REQA] and tx_last_bits == 7:
                 answer = list(_ATQA)
-            elif len(sent) == 2 and sent[0] in (0x93, 0x95) and sent[1] == 0x20 and tx_last_bits == 0:
+            elif len(sent) == 2 and sent[0] in (0x93, 0x95, 0x97) and sent[1] == 0x20 and tx_last_bits == 0:
                 u = self._part(sent[0])
                 if u is not None:
                     bcc = u[0] ^ u[1] ^ u[2] ^ u[3]
@@ -135,17 +136,21 @@ class FakeMfrc522:
     def _part(self, level):
         """The 4 UID bytes a cascade level answers with, or None."""
         u = self.uid
-        if len(u) == 4:
-            return u if level == 0x93 else None
-        return bytes((0x88, u[0], u[1], u[2])) if level == 0x93 else u[3:7]
+        k = (level - 0x93) // 2                      # 0, 1, 2 for cascade levels 1-3
+        parts = len(u) // 3                          # 1, 2, 3 levels for 4, 7, 10 bytes
+        if k >= parts:
+            return None
+        if k == parts - 1:
+            return u[3 * k:3 * k + 4]
+        return bytes((0x88,)) + u[3 * k:3 * k + 3]
 
     def _framed(self, frame):
         """The answer (with CRC_A) to a CRC-framed command: SELECT or READ; None for anything else."""
-        if len(frame) == 7 and frame[0] in (0x93, 0x95) and frame[1] == 0x70:
+        if len(frame) == 7 and frame[0] in (0x93, 0x95, 0x97) and frame[1] == 0x70:
             part = self._part(frame[0])
             if part is None or list(frame[2:6]) != list(part):
                 return None
-            body = [0x04 if len(self.uid) == 7 and frame[0] == 0x93 else self.sak]
+            body = [0x04 if part[0] == 0x88 and (frame[0] - 0x93) // 2 < len(self.uid) // 3 - 1 else self.sak]
         elif len(frame) == 2 and frame[0] == 0x30 and self.sak == 0x00:
             start = frame[1] * 4
             body = [self.memory[(start + k) % len(self.memory)] for k in range(16)]

@@ -12,6 +12,8 @@ from cbtc.protocol import wire
 from cbtc.railway.geometry import Path, forward_m
 from cbtc.railway.layout import Block, IpsFrame, Layout, Station, Tag, span_on_loop_m
 
+MAX_COUNT = 1000   # most repeats of a piece, or blocks, a layout may ask for: a table holds a few hundred pieces
+
 STUD_M = 0.008
 # LEGO pieces: name -> segment. A straight is 16 studs; a curve's radius is measured to the track centre line.
 # curve_r40 is LEGO's own curve; curve_r56 and curve_r72 are the wide curves LEGO users buy from third-party makers,
@@ -71,8 +73,8 @@ class _Reader:
 
     def count(self, mapping, where):
         value = mapping.get("count", 1)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            self.fail(f"{where}.count", f"must be a whole number >= 1, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_COUNT:
+            self.fail(f"{where}.count", f"must be a whole number from 1 to {MAX_COUNT}, got {value!r}")
         return value
 
 
