@@ -405,8 +405,8 @@ class OnboardUnit:
         self._sent_seq[slot] = seq
         self._sent_t[slot] = now_ms
         payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
-                                     self.duty_pct, self.mode, self.cseq, self._ips_fix, self._tags, self.faults,
-                                     self._rng_report)
+                                     self.duty_pct, self.mode, self.cseq, self.sid, self._ips_fix, self._tags,
+                                     self.faults, self._rng_report)
         self.seq = wire.wrap_add(seq, 1)
         self._ips_fix = None
         if self._rng_report is not None:

@@ -187,20 +187,21 @@ def check_fields(msg, names, topic):
 
 # --- reports ---------------------------------------------------------------------------------------------------
 
-def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, ips, tags, faults,
+def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips, tags, faults,
                   rng=None):
     """Sealed report payload.
 
     boot: this boot's id (new_boot_id); t_ms: board uptime (ms) when sampled; odo_mm: encoder odometer (mm);
     v_mmps: encoder speed (mm/s); duty_pct: motor duty (%); mode: one of MODES (wire_zc.py); cseq: seq of the last
-    accepted command (-1 if none); ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report, stamped on the
-    board's clock); tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list of names from
-    FAULTS (wire_zc.py);
-    rng: None or [t_ms, gap_mm], the newest gap to the train ahead measured by the onboard ranging since the last
-    report (board clock; gap from this head to the leader's tail, mm).
+    accepted command (-1 if none); csid: the session id of that command (-1 if none: it tells the controller this
+    report was made after its command arrived); ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report,
+    stamped on the board's clock); tags: list of [uid_hex, odo_mm, t_ms] read since the last report; faults: list
+    of names from FAULTS (wire_zc.py); rng: None or [t_ms, gap_mm], the newest gap to the train ahead measured by
+    the onboard ranging since the last report (board clock; gap from this head to the leader's tail, mm).
     """
     msg = {"v": VERSION, "k": "rep", "id": train_id, "boot": boot, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
-           "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "ips": ips, "tags": tags, "flt": faults}
+           "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "csid": csid, "ips": ips, "tags": tags,
+           "flt": faults}
     if rng is not None:
         msg["rng"] = rng   # absent (read as null) on boards without ranging
     return seal(key, topic_report(train_id), json.dumps(msg, separators=(",", ":")).encode())

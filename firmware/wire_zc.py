@@ -40,7 +40,7 @@ def topic_zone_status(zone_id):
 # a report's integer fields, all required: (name, lowest, highest) flat; then its other fields (`rng` optional)
 REPORT_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "t_ms", 0, WRAP_MASK, "odo_mm", -INT31, INT31,
                "v_mmps", -20000, 20000, "duty", -100, 100,
-               "cseq", -1, WRAP_MASK)
+               "cseq", -1, WRAP_MASK, "csid", -1, INT31)
 REPORT_OTHER = ("mode", "ips", "tags", "rng", "flt")
 TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, WRAP_MASK)
 UID_HEX_LENGTHS = (8, 14, 20)   # MFRC522 uids of 4, 7 and 10 bytes

@@ -40,7 +40,7 @@ tags = st.lists(st.one_of(
 report_fields = st.fixed_dictionaries({
     "boot": st.integers(1, wire.BOOT_MAX), "seq": board_ms, "t_ms": board_ms, "odo_mm": st.integers(-INT31, INT31),
     "v_mmps": st.integers(-20000, 20000), "duty_pct": st.integers(-100, 100), "mode": st.sampled_from(wire.MODES),
-    "cseq": st.integers(-1, WRAP),
+    "cseq": st.integers(-1, WRAP), "csid": st.integers(-1, INT31),
     "ips": st.none() | st.tuples(board_ms, st.integers(-10 ** 6, 10 ** 6), st.integers(-10 ** 6, 10 ** 6)).map(list),
     "tags": tags, "faults": st.lists(st.sampled_from(wire.FAULTS), max_size=4),
     "rng": st.none() | st.tuples(board_ms, st.integers(-100000, 10 ** 6)).map(list)})
@@ -68,8 +68,8 @@ def mutated_bodies(draw, fields, encode):
 def encode_report(fields):
     f = dict(fields)
     return wire.encode_report(KEY, "A", f.pop("boot"), f.pop("seq"), f.pop("t_ms"), f.pop("odo_mm"),
-                              f.pop("v_mmps"), f.pop("duty_pct"), f.pop("mode"), f.pop("cseq"), f.pop("ips"),
-                              f.pop("tags"), f.pop("faults"), f.pop("rng"))
+                              f.pop("v_mmps"), f.pop("duty_pct"), f.pop("mode"), f.pop("cseq"), f.pop("csid"),
+                              f.pop("ips"), f.pop("tags"), f.pop("faults"), f.pop("rng"))
 
 
 def encode_command(fields):
@@ -96,7 +96,7 @@ def _hex(value, lengths):
 
 def report_conforms(msg):
     ints = {"boot": (1, wire.BOOT_MAX), "seq": (0, WRAP), "t_ms": (0, WRAP), "odo_mm": (-INT31, INT31),
-            "v_mmps": (-20000, 20000), "duty": (-100, 100), "cseq": (-1, WRAP)}
+            "v_mmps": (-20000, 20000), "duty": (-100, 100), "cseq": (-1, WRAP), "csid": (-1, INT31)}
     allowed = set(ints) | {"v", "k", "id", "mode", "ips", "tags", "rng", "flt"}
     return (set(msg) <= allowed and msg["v"] == 1 and type(msg["v"]) is int and msg["k"] == "rep"
             and msg["id"] == "A" and all(_int_in(msg[k], *b) for k, b in ints.items()) and msg["mode"] in wire.MODES
@@ -132,8 +132,8 @@ def report_round_trip(fields):
     msg = wire.decode_report(KEY, REPORT_TOPIC, encode_report(fields))
     expected = {"v": 1, "k": "rep", "id": "A", "boot": fields["boot"], "seq": fields["seq"], "t_ms": fields["t_ms"],
                 "odo_mm": fields["odo_mm"], "v_mmps": fields["v_mmps"], "duty": fields["duty_pct"],
-                "mode": fields["mode"], "cseq": fields["cseq"], "ips": fields["ips"], "tags": fields["tags"],
-                "flt": fields["faults"], "rng": fields["rng"]}
+                "mode": fields["mode"], "cseq": fields["cseq"], "csid": fields["csid"], "ips": fields["ips"],
+                "tags": fields["tags"], "flt": fields["faults"], "rng": fields["rng"]}
     assert msg == expected
 
 

@@ -94,7 +94,7 @@ def last_report():
 
 def test_protocol_round_trip_and_rejections_under_micropython():
     script = PRELUDE + """
-p = wire.encode_report(KEY, "A", 1, 1, 100, 5, 3, 20, "run", -1, [90, 1, 2], [["04AB12CD", 3, 99]], ["ips_silent"])
+p = wire.encode_report(KEY, "A", 1, 1, 100, 5, 3, 20, "run", -1, -1, [90, 1, 2], [["04AB12CD", 3, 99]], ["ips_silent"])
 r = wire.decode_report(KEY, "cbtc/train/A/report", p)
 assert r["odo_mm"] == 5 and r["tags"][0][0] == "04AB12CD"
 c = wire.encode_command(KEY, "A", 1, 1, 7, 1, 500, 1200, 1000, 600, 800)

@@ -186,7 +186,7 @@ def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
         attacker.publish("cbtc/train/A/cmd", replay)
         attacker.publish("cbtc/train/A/report", reports[-1][:-4] + b"0000")                  # MAC broken
         attacker.publish("cbtc/train/Z/report", wire.encode_report(
-            b"0123456789abcdef", "Z", 1, 1, 1000, 0, 0, 0, "idle", -1, None, [], []))             # unknown train
+            b"0123456789abcdef", "Z", 1, 1, 1000, 0, 0, 0, "idle", -1, -1, None, [], []))             # unknown train
         after = fleet.wait(lambda s: s["trains"][0]["commands_rejected_onboard"] >= before[
             "commands_rejected_onboard"] + 2, 5, "two rejections on board")
         a = after["trains"][0]

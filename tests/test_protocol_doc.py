@@ -32,7 +32,7 @@ def _body(payload):
 
 def test_report_table_lists_exactly_the_report_fields():
     doc = open(DOC).read()
-    payload = wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, None, [], [], rng=[90, 400])
+    payload = wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], [], rng=[90, 400])
     assert _table_fields(_section(doc, "### Report")) == set(_body(payload))
 
 
@@ -99,9 +99,10 @@ def _doc_range(bounds):
 
 def test_documented_replay_windows_are_the_coded_ones():
     from cbtc.firmware import obu
-    from cbtc.zone import controller
+    from cbtc.zone import boots
 
     doc = " ".join(open(DOC).read().split())
     assert f"one of the board's last {obu._HISTORY} reports" in doc
     assert f"a session the board has left (the last {obu._LEFT_SIDS})" in doc
-    assert f"the train's left boots (the last {controller._LEFT_BOOTS})" in doc
+    assert f"a boot the train has left (the last {boots.LEFT_BOOTS})" in doc
+    assert f"plus {boots.UPTIME_SLACK_S} s and 2 %" in doc

@@ -7,13 +7,22 @@ never after a silence, and a boot the train has left stays refused.
 
 import logging
 
+import pytest
+
 from cbtc.estimation.odometry_estimator import OdometryEstimator
 from cbtc.layout_files import load_layout
 from cbtc.protocol import wire
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import paper_scenario
 from cbtc.zone.controller import TrainSetup, ZoneController
 from test_obu import CMD, Bench
 
 KEY = b"0123456789abcdef"
+
+
+@pytest.fixture
+def square():
+    return load_layout("itb_square")
 
 
 def test_commands_recorded_before_a_reboot_are_refused_by_the_new_boot():
@@ -50,32 +59,77 @@ def _zone(now):
     return zc
 
 
-def _report(boot, seq, t_ms, odo_mm):
-    return wire.encode_report(KEY, "A", boot, seq, t_ms, odo_mm, 0, 0, "idle", -1, None, [], [])
+def _report(boot, seq, t_ms, odo_mm, csid=-1):
+    return wire.encode_report(KEY, "A", boot, seq, t_ms, odo_mm, 0, 0, "idle", -1, csid, None, [], [])
+
+
+def _stream(zc, now, boot, seqs, t0_ms=1000, answering=True):
+    """Reports of `boot` for `seqs`, 50 ms apart on both clocks, each handed to `zc`; returns the payloads."""
+    sent = []
+    for seq in seqs:
+        now[0] += 0.05
+        sent.append(_report(boot, seq, t0_ms + 50 * seq, 10 * seq, zc.session_id if answering else -1))
+        zc.on_report(wire.topic_report("A"), sent[-1])
+    return sent
 
 
 def test_an_old_report_after_a_silence_is_refused_and_a_new_boot_is_a_restart(caplog):
     now = [0.0]
     zc = _zone(now)
     topic = wire.topic_report("A")
-    recorded = []
-    for seq in range(20):
-        now[0] = seq * 0.05
-        recorded.append(_report(5, seq, 1000 + 50 * seq, 10 * seq))
-        zc.on_report(topic, recorded[-1])
+    recorded = _stream(zc, now, 5, range(20))
     state = zc.trains["A"]
-    assert state.last_report_seq == 19 and state.reports_rejected == 0
-    now[0] = 10.0                                   # silent for 9 s: a replay is still a replay
+    assert state.boots.last_seq == 19 and state.reports_rejected == 0 and state.boots.answered
+    now[0] += 9.0                                   # silent for 9 s: a replay is still a replay
     with caplog.at_level(logging.WARNING, logger="cbtc.zone"):
         for payload in recorded:
             zc.on_report(topic, payload)
-    assert state.reports_rejected == 20 and state.last_report_seq == 19 and state.restarts == 0
+    assert state.reports_rejected == 20 and state.boots.last_seq == 19 and state.restarts == 0
     assert state.report["odo_mm"] == 190
-    zc.on_report(topic, _report(6, 0, 30, 0))       # the board restarted: a new boot id
-    assert state.restarts == 1 and state.boot == 6 and state.report["odo_mm"] == 0
+    zc.on_report(topic, _report(6, 0, 30, 0, zc.session_id))   # the board restarted: a new boot id
+    assert state.restarts == 1 and state.boots.boot == 6 and state.report["odo_mm"] == 0
     for payload in recorded:                         # the boot it left stays refused
         zc.on_report(topic, payload)
-    assert state.boot == 6 and state.restarts == 1 and "has left" in state.last_reject
+    assert state.boots.boot == 6 and state.restarts == 1 and "has left" in state.last_reject
+
+
+def test_a_recorded_boot_never_takes_over_a_board_that_answers():
+    now = [0.0]
+    zc = _zone(now)
+    state = zc.trains["A"]
+    _stream(zc, now, 5, range(200), t0_ms=60000)       # the real board, up for a minute, answering
+    ghost = [_report(3, seq, 4000 + 50 * seq, 0) for seq in range(10)]   # recorded in a boot never seen here
+    for payload in ghost:
+        zc.on_report(wire.topic_report("A"), payload)
+        _stream(zc, now, 5, [state.boots.last_seq + 1], t0_ms=60000)
+    assert state.boots.boot == 5 and state.restarts == 0 and "a replay, not a restart" in state.last_reject
+
+
+def test_a_replay_that_took_over_an_unreachable_board_gives_it_back_and_holds_the_zone_meanwhile():
+    now = [0.0]
+    zc = _zone(now)
+    state = zc.trains["A"]
+    _stream(zc, now, 5, range(20))
+    now[0] += 30.0                                     # the real board out of reach for 30 s
+    _stream(zc, now, 3, range(5), t0_ms=2000, answering=False)   # a recorded boot: it never answers
+    assert state.boots.boot == 3 and state.restarts == 1 and not state.boots.answered
+    assert not zc._all_located(zc.located())           # no authority rests on it
+    _stream(zc, now, 5, range(20, 25))                 # the real board is back: not locked out
+    assert state.boots.boot == 5 and state.restarts == 2 and state.boots.answered
+    _stream(zc, now, 3, range(5, 8), t0_ms=2000, answering=False)
+    assert state.boots.boot == 5 and "a replay, not a restart" in state.last_reject
+
+
+def test_no_train_gets_authority_while_another_does_not_answer(square):
+    sim = Simulation(paper_scenario(square, seed=1, laps=None, duration_s=15.0))
+    deaf = sim.trains[1]
+    deaf.obu.on_message = lambda topic, payload, now_ms: None   # a board that never takes a command of ours
+    sim.run()
+    assert not sim.zc.trains[deaf.train_id].boots.answered
+    assert sim.trains[0].travelled_m < 0.01 and deaf.travelled_m < 0.01
+    sim = Simulation(paper_scenario(square, seed=1, laps=None, duration_s=15.0))
+    sim.run()
+    assert sim.trains[0].travelled_m > 2.0             # the same run with both answering moves
 
 
 def test_a_session_the_board_has_left_is_never_taken_again():

@@ -14,7 +14,7 @@ BOOT = 77
 
 
 def report(**changes):
-    fields = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3,
+    fields = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3, csid=99,
                   ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990]], faults=["ips_crc"])
     fields.update(changes)
     return wire.encode_report(KEY, "A", BOOT, **fields)

@@ -9,8 +9,10 @@ command. A train whose follower is held by it is asked for faster reports (`Auth
 follower's authority rests on the age of that data. The controller grants fast reports within the report rate it is
 sized for (`report_budget_hz`), to the trains whose followers are nearest their limits first.
 
-A train gets no authority while any configured train is unlocated (it could be anywhere), and no extension while the
-data of the train ahead is stale. Reports that fail validation or come from unknown trains are logged and dropped.
+A train gets no authority while any configured train is unlocated (it could be anywhere) or its reports do not yet
+answer this controller (cbtc.zone.boots: they could be replayed), and no extension while the data of the train ahead
+is stale. Reports that fail validation, come from unknown trains or do not move a train's picture forward are logged
+and dropped.
 """
 
 import logging
@@ -23,9 +25,9 @@ from cbtc.firmware import obu
 from cbtc.protocol import wire
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
+from cbtc.zone.boots import BootTracker
 
 log = logging.getLogger("cbtc.zone")
-_LEFT_BOOTS = 16   # boots of a train remembered as left: their recorded reports are refused
 
 
 @dataclass
@@ -49,9 +51,7 @@ class TrainState:
         self.report = None           # newest accepted report (dict)
         self.report_recv_s = None
         self.report_t_s = None       # controller time at which the board sampled it
-        self.boot = None             # boot id of the board's reports, and the boots it has left (newest last)
-        self.left_boots = ()
-        self.last_report_seq = None  # newest accepted report seq of the current boot
+        self.boots = BootTracker()   # which reports move the picture forward; has the board answered us
         self.next_stop = None        # station name or None
         self.dwell_until_s = None
         self.dwells = 0
@@ -76,21 +76,8 @@ class TrainState:
     def train_id(self):
         return self.setup.train_id
 
-    def out_of_order(self, report):
-        """Why `report` must be dropped: of a boot this train has left, or not after the last one of its boot; ""
-        if it moves the picture forward (a new boot id is a restart of the board, never an old report after a
-        silence)."""
-        if report["boot"] == self.boot:
-            if self.last_report_seq is not None and wire.wrap_diff(report["seq"], self.last_report_seq) <= 0:
-                return f"report seq {report['seq']} not after {self.last_report_seq} (replayed or reordered)"
-        elif report["boot"] in self.left_boots:
-            return f"report of boot {report['boot']}, which this train has left (replayed from before a restart)"
-        return ""
-
     def restart(self, estimator):
         """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
-        self.left_boots = (self.left_boots + (self.boot,))[-_LEFT_BOOTS:]
-        self.last_report_seq = None
         self.estimator = estimator
         self.clock = BoardClock()
         self.report = None
@@ -168,20 +155,16 @@ class ZoneController:
             self.invalid_reports += 1
             log.warning("dropped report of train %s: %s", train_id, exc.reason)
             return
-        reason = state.out_of_order(report)
+        reason = state.boots.refusal(report, recv_s)
         if reason:
             state.reports_rejected += 1
             state.last_reject = reason
             log.warning("dropped report of train %s: %s", train_id, reason)
             return
-        if report["boot"] != state.boot:
-            if state.boot is not None:
-                # a new boot: the board restarted; its clock, odometer and sequence began again
-                log.warning("train %s restarted (boot %d after %d): locating it afresh", train_id, report["boot"],
-                            state.boot)
-                state.restart(self._estimator_factory(self.layout, state.setup.profile))
-            state.boot = report["boot"]
-        state.last_report_seq = report["seq"]
+        if state.boots.accept(report, recv_s, self.session_id):
+            # a new boot: the board restarted; its clock, odometer and sequence began again
+            log.warning("train %s restarted (boot %d): locating it afresh", train_id, report["boot"])
+            state.restart(self._estimator_factory(self.layout, state.setup.profile))
         state.clock.observe(report["t_ms"], recv_s)
         state.estimator.on_report(report, state.clock)
         state.report = report
@@ -199,12 +182,17 @@ class ZoneController:
         found = [st for st in self.trains.values() if st.report is not None and st.estimator.localized]
         return sorted(found, key=lambda st: st.estimator.estimate(st.report_t_s).s_m)
 
+    def _all_located(self, located):
+        """Every train located, and answering this controller (its reports echo our session): a replayed stream of
+        reports never answers, so no authority rests on it."""
+        return len(located) == len(self.trains) and all(st.boots.answered for st in located)
+
     def cycle(self, now_s: float):
         """Compute and publish a command for every train that has reported. In event-driven mode a train answered
         since the previous cycle is skipped: the cycle only covers trains whose reports did not arrive."""
         self.cycles += 1
         located = self.located()
-        all_located = len(located) == len(self.trains)
+        all_located = self._all_located(located)
         for i, state in enumerate(located):
             if self.event_driven and state.answered_s is not None and now_s - state.answered_s < self.cycle_s:
                 continue
@@ -232,7 +220,7 @@ class ZoneController:
         located = self.located()
         if state not in located:
             return
-        all_located = len(located) == len(self.trains)
+        all_located = self._all_located(located)
         i = located.index(state)
         leader = located[(i + 1) % len(located)] if len(located) > 1 else None
         self._update(state, leader, all_located, now_s)

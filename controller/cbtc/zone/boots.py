@@ -1,0 +1,60 @@
+"""Which reports of one train move the controller's picture of it forward: boots, sequence and the session echo.
+
+Pure: reports and receive times in, a verdict out. A report of the current boot must come after the last one
+(`seq`, wrap-safe), however long the train was silent. A new boot id is a restart of the board, unless it is a boot
+the train has left, or the current boot has answered this controller (it is known to be the real board) and the new
+one claims an uptime longer than the silence since that boot's last report (a board cannot report before it has
+booted, so that is a replay). A report answers this controller when it echoes its session id (`csid`): proof that it
+was made after one of this controller's commands reached the board, which no recorded report can give. The boot a
+train restarted from joins its left boots only once the new boot has answered, so a replayed boot taking over while
+the real board was out of reach never locks the real board out.
+"""
+
+from cbtc.protocol import wire
+
+LEFT_BOOTS = 16          # boots remembered as left: their recorded reports are refused
+UPTIME_SLACK_S = 0.5     # a new boot's uptime may exceed the silence by this, plus 2 % of it (clock rates differ)
+
+
+class BootTracker:
+    def __init__(self):
+        self.boot = None         # boot id of the accepted reports
+        self.last_seq = None     # and the newest accepted seq of that boot
+        self.last_recv_s = None
+        self.answered = False    # the newest accepted report echoes this controller's session
+        self.left = ()           # boots this train has left, newest last
+        self._leaving = None     # the boot a restart came from, until the new boot has answered
+
+    def refusal(self, report, recv_s):
+        """Why `report` (received at `recv_s`) must be dropped, or "" if it moves the picture forward."""
+        boot = report["boot"]
+        if boot == self.boot:
+            if self.last_seq is not None and wire.wrap_diff(report["seq"], self.last_seq) <= 0:
+                return f"report seq {report['seq']} not after {self.last_seq} (replayed or reordered)"
+            return ""
+        if boot in self.left:
+            return f"report of boot {boot}, which this train has left (replayed from before a restart)"
+        if self.answered and self.last_recv_s is not None:
+            silence_s = recv_s - self.last_recv_s
+            if report["t_ms"] / 1000.0 > silence_s * 1.02 + UPTIME_SLACK_S:
+                return (f"report of boot {boot} claims {report['t_ms'] / 1000.0:.1f} s of uptime, but boot "
+                        f"{self.boot} reported {silence_s:.1f} s ago (a replay, not a restart)")
+        return ""
+
+    def accept(self, report, recv_s, session_id):
+        """Take a report `refusal` passed; True if it starts a new boot after another (a restart of the board)."""
+        restart = self.boot is not None and report["boot"] != self.boot
+        if restart:
+            if self._leaving is None and self.answered:
+                self._leaving = self.boot
+            self.boot = report["boot"]
+        elif self.boot is None:
+            self.boot = report["boot"]
+        self.last_seq = report["seq"]
+        self.last_recv_s = recv_s
+        self.answered = report["csid"] == session_id
+        if self.answered and self._leaving is not None:
+            if self._leaving != self.boot:
+                self.left = (self.left + (self._leaving,))[-LEFT_BOOTS:]
+            self._leaving = None
+        return restart
