@@ -120,12 +120,15 @@ def test_a_replay_that_took_over_an_unreachable_board_gives_it_back_and_holds_th
     assert state.boots.boot == 5 and "a replay, not a restart" in state.last_reject
 
 
-def test_no_train_gets_authority_while_another_does_not_answer(square):
+def test_no_train_gets_authority_while_another_does_not_answer(square, caplog):
     sim = Simulation(paper_scenario(square, seed=1, laps=None, duration_s=15.0))
     deaf = sim.trains[1]
     deaf.obu.on_message = lambda topic, payload, now_ms: None   # a board that never takes a command of ours
-    sim.run()
+    with caplog.at_level(logging.WARNING, logger="cbtc.zone"):
+        sim.run()
     assert not sim.zc.trains[deaf.train_id].boots.answered
+    said = [r.getMessage() for r in caplog.records if "have not answered" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith(f"train {deaf.train_id}:") and "same key" in said[0]
     assert sim.trains[0].travelled_m < 0.01 and deaf.travelled_m < 0.01
     sim = Simulation(paper_scenario(square, seed=1, laps=None, duration_s=15.0))
     sim.run()

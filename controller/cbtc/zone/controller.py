@@ -28,6 +28,7 @@ from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone.boots import BootTracker
 
 log = logging.getLogger("cbtc.zone")
+DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
 
 
 @dataclass
@@ -71,6 +72,7 @@ class TrainState:
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
         self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
         self.gap_alarms = 0
+        self.deaf_since_s = None     # since when this train's reports have not answered our commands
 
     @property
     def train_id(self):
@@ -165,6 +167,7 @@ class ZoneController:
             # a new boot: the board restarted; its clock, odometer and sequence began again
             log.warning("train %s restarted (boot %d): locating it afresh", train_id, report["boot"])
             state.restart(self._estimator_factory(self.layout, state.setup.profile))
+        self._watch_answers(state, recv_s)
         state.clock.observe(report["t_ms"], recv_s)
         state.estimator.on_report(report, state.clock)
         state.report = report
@@ -174,6 +177,20 @@ class ZoneController:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
             self._answer(state, recv_s)
+
+    def _watch_answers(self, state, recv_s):
+        """Warn once when a train's reports have not answered our commands for DEAF_WARN_S: the zone holds every
+        train meanwhile, and the user needs to know which board and why."""
+        if state.boots.answered or state.answered_s is None:
+            state.deaf_since_s = None
+        elif state.deaf_since_s is None:
+            state.deaf_since_s = recv_s
+        elif recv_s - state.deaf_since_s >= DEAF_WARN_S:
+            log.warning("train %s: its reports have not answered this controller's commands for %.0f s, so no train "
+                        "gets authority; check that its board has the same key as the controller and that no other "
+                        "controller commands it (or its reports are replayed)", state.train_id,
+                        recv_s - state.deaf_since_s)
+            state.deaf_since_s = float("inf")   # said once, until it answers again
 
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
