@@ -177,11 +177,11 @@ def decode_sealed(key, topic, payload, kind, specs):
     return msg
 
 
-def check_fields(msg, names, topic):
+def check_fields(msg, names, topic, more=()):
     """WireError naming the first field of `msg` that is neither a header field nor in `names` (a tuple that may
-    hold other values too, such as check_ints specs): a message carries exactly the documented fields."""
+    hold other values too, such as check_ints specs) or `more`: a message carries exactly the documented fields."""
     for name in msg:
-        if name not in names and name not in ("v", "k", "id"):
+        if name not in names and name not in more and name not in ("v", "k", "id"):
             raise WireError("message on %s has the unknown field %r (see docs/protocol.md)" % (topic, name))
 
 

@@ -80,9 +80,7 @@ def _is_hex(text, lengths):
 def check_report(msg, topic):
     """`msg` (a report whose header and integer fields wire has checked) if its mode, ips, tags, rng and flt are
     valid and it has no other field; WireError with the reason otherwise."""
-    for name in msg:
-        if name not in REPORT_OTHER:
-            check_fields({name: 0}, REPORT_INTS, topic)
+    check_fields(msg, REPORT_INTS, topic, REPORT_OTHER)
     if msg.get("mode") not in MODES:
         raise WireError("field 'mode' on %s is %r, not one of %s" % (topic, msg.get("mode"), ", ".join(MODES)))
     _null_or_ints(msg, "ips", ("t_ms", 0, WRAP_MASK, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic, True)

@@ -44,12 +44,9 @@ class BootTracker:
     def accept(self, report, recv_s, session_id):
         """Take a report `refusal` passed; True if it starts a new boot after another (a restart of the board)."""
         restart = self.boot is not None and report["boot"] != self.boot
-        if restart:
-            if self._leaving is None and self.answered:
-                self._leaving = self.boot
-            self.boot = report["boot"]
-        elif self.boot is None:
-            self.boot = report["boot"]
+        if restart and self._leaving is None and self.answered:
+            self._leaving = self.boot
+        self.boot = report["boot"]
         self.last_seq = report["seq"]
         self.last_recv_s = recv_s
         self.answered = report["csid"] == session_id
