@@ -43,7 +43,7 @@ def build(config, drivers):
     client = MQTTClient("cbtc-" + train_id, config["broker_host"], config["broker_port"], config["mqtt_user"],
                         config["mqtt_password"], config["keepalive_s"])
     net = link.Link(client, wire.topic_status(train_id), (wire.topic_command(train_id),), (OSError, MQTTException),
-                    (config["backoff_min_ms"], config["backoff_max_ms"]))
+                    (config["backoff_min_ms"], config["backoff_max_ms"]), max(config["loop_ms"], 10))
     unit = obu.OnboardUnit(train_id, unhexlify(config["key_hex"]), new_boot_id(), drivers["encoder"], drivers["ips"],
                            drivers["rfid"], drivers["motor"], net.publish, config["obu"])
     net.on_message = unit.on_message

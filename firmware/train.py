@@ -38,7 +38,7 @@ def run(config, now, unit, link, maint, watchdog=None):
         now_ms = now()
         healthy = wire.wrap_diff(now_ms, last_ms) <= config["max_pass_ms"]
         last_ms = now_ms
-        try:
+        try:   # the link catches its own errors; whatever it does, the unit steps below
             if link.connected:
                 link.poll(now_ms)
             elif link.due(now_ms) and unit.motor.mode == "brake":
@@ -47,6 +47,11 @@ def run(config, now, unit, link, maint, watchdog=None):
                 else:
                     print("mqtt: %s; retrying" % link.last_error)
             unit.link_ok = link.connected
+        except Exception as exc:
+            healthy = False
+            errors += 1
+            print("link: %r" % (exc,))
+        try:   # the command deadline and the trip supervision run on every pass
             unit.step(now_ms)
         except Exception as exc:  # never let the loop die: brake, report on the console, let the watchdog judge
             healthy = False
@@ -72,8 +77,9 @@ def run(config, now, unit, link, maint, watchdog=None):
         if wire.wrap_diff(now_ms, next_stats_ms) >= 0:
             next_stats_ms = wire.wrap_add(now_ms, config["stats_ms"])
             print("stats: up_ms %d heap_peak %d heap_live %d heap_free %d link %s losses %d mode %s errors %d "
-                  "sensor_errors %d" % (now_ms, peak, live, gc.mem_free(), "up" if link.connected else "down",
-                                        link.losses, unit.mode, errors, unit.sensor_errors))
+                  "sensor_errors %d dropped %d %d" % (now_ms, peak, live, gc.mem_free(),
+                                                      "up" if link.connected else "down", link.losses, unit.mode,
+                                                      errors, unit.sensor_errors, link.oversized, link.retained))
         if config["run_ms"] and now_ms >= config["run_ms"]:
             return peak, live
         gc.collect()

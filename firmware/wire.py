@@ -34,7 +34,7 @@ WRAP_MASK = const(0x3FFFFFFF) # times (ms) and sequence numbers on the wire coun
 _HALF = const(0x20000000)
 BOOT_MAX = const(1073741823)  # boot ids are 1..2^30-1: a small int on the board
 _MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
-_MAX_PAYLOAD = const(1024)    # longest payload accepted (bytes)
+MAX_PAYLOAD = const(1024)     # longest payload accepted (bytes); the board's link drops longer messages unread
 _ID_MAX_LEN = const(16)       # longest train id (characters)
 
 
@@ -149,8 +149,8 @@ def decode_sealed(key, topic, payload, kind, specs):
     train_id = train_id_of(topic)
     if not isinstance(payload, (bytes, bytearray)):
         raise WireError("payload on %s is %s, not bytes" % (topic, type(payload).__name__))
-    if len(payload) > _MAX_PAYLOAD:
-        raise WireError("payload on %s is %d bytes, over the %d-byte limit" % (topic, len(payload), _MAX_PAYLOAD))
+    if len(payload) > MAX_PAYLOAD:
+        raise WireError("payload on %s is %d bytes, over the %d-byte limit" % (topic, len(payload), MAX_PAYLOAD))
     payload = bytes(payload)
     cut = payload.rfind(b"#")
     if cut < 0:

@@ -252,6 +252,59 @@ def test_whole_firmware_runs_in_its_heap_and_reports_the_peak(mpy_tree, tmp_path
     assert 0 < live <= peak <= BOOT_HEAP_BYTES
 
 
+def test_oversized_and_retained_messages_neither_block_the_loop_nor_stop_commands(mpy_tree, tmp_path):
+    """A stranger's 64 KiB on the train's command topic, retained before the board boots and again live while it runs
+    (anyone may publish on this anonymous broker): the board takes commands at once after booting; the live one does
+    not stall its loop (reports keep coming), the motor brakes within one command timeout once the commands stop, and
+    commands are taken again after it. The console counts both messages as dropped."""
+    broker = Mosquitto(str(tmp_path), free_port())
+    broker.start()
+    zc = Controller(broker.port)
+    stranger = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="stranger")
+    stranger.connect("127.0.0.1", broker.port)
+    stranger.loop_start()
+    junk = b"x" * 65536
+    stranger.publish(wire.topic_command(TRAIN), junk, retain=True).wait_for_publish(5)
+    board = start_board(mpy_tree, str(tmp_path), broker.port, position(10, 20, 0))
+    ttl_ms = 800
+    try:
+        zc.wait(lambda r: True, 10, "the first report")
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline and (zc.last()["mode"] != "run" or zc.last()["duty"] == 0):
+            zc.command(ttl_ms=ttl_ms)
+            time.sleep(0.1)
+        zc.wait(lambda r: r["mode"] == "run" and r["duty"] > 0, 0.5, "run despite the retained message")
+
+        count_before = len(zc.reports)
+        stranger.publish(wire.topic_command(TRAIN), junk).wait_for_publish(5)
+        sent_s = time.monotonic()   # the controller falls silent with the stranger's message
+        braked = zc.wait(lambda r: r["mode"] == "stop" and r["duty"] == 0, ttl_ms / 1000 + 0.5, "brake after expiry")
+        assert time.monotonic() - sent_s < ttl_ms / 1000 + 0.5
+        assert "cmd_timeout" in braked["flt"]
+        with zc.lock:
+            recent = zc.reports[count_before:]
+        gaps_ms = [wire.wrap_diff(b["t_ms"], a["t_ms"]) for a, b in zip(recent, recent[1:])]
+        assert gaps_ms and max(gaps_ms) < 250, gaps_ms   # the loop went on reporting every 50 ms
+
+        deadline = time.monotonic() + 1.5
+        while time.monotonic() < deadline and (zc.last()["mode"] != "run" or zc.last()["duty"] == 0):
+            zc.command(ttl_ms=ttl_ms)
+            time.sleep(0.1)
+        zc.wait(lambda r: r["mode"] == "run" and r["duty"] > 0, 0.5, "commands taken again")
+        time.sleep(0.3)
+    finally:
+        board.kill()
+        out = board.communicate(timeout=10)[0]
+        print(out[-2000:])
+        stranger.loop_stop()
+        zc.close()
+        broker.stop()
+    dropped = re.findall(r"dropped (\d+) (\d+)", out)
+    assert dropped and dropped[-1] == ("2", "0"), out   # both dropped unread for their size (retained or not)
+    assert all(s[7] == "0" for s in re.findall(STATS_RE, out)), "no exception reached the loop"
+    assert "mqtt: " not in out.split("connected", 1)[-1], "the link was never lost"
+
+
 WATCHDOG_SCRIPT = """
 import machine, train
 class Clock:
@@ -264,7 +317,7 @@ class Motor:
         self.mode = "brake"
 class Net:
     connected = True
-    losses = 0
+    losses = oversized = retained = 0
     def poll(self, now_ms):
         pass
 class Wdt:

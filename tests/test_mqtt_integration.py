@@ -266,6 +266,14 @@ def test_acl_only_the_controller_commands_a_train(secured_mosquitto):
         assert to_a == [b"from zc"]
         assert b_reads == []
         assert zc_reports == [("cbtc/train/A/report", b"A itself")]
+        # nothing can be left on a command topic by a train, and nothing over the protocol's size reaches a board
+        b.publish("cbtc/train/A/cmd", b"stored by B", retain=True)
+        zc.publish("cbtc/train/A/cmd", b"x" * 65536)
+        time.sleep(0.3)
+        stored = []
+        a.subscribe("cbtc/train/A/cmd", lambda t, p: stored.append(p))   # retained messages come with a subscribe
+        time.sleep(0.5)
+        assert stored == [] and to_a == [b"from zc"]
     finally:
         for bus in (zc, a, b):
             bus.disconnect()

@@ -6,7 +6,9 @@ them), `acl` and `credentials.json` (the clear-text passwords the clients need; 
 
 ACL: user `zc` reads every train's report and status and writes every train's command and `cbtc/zc/#`; user
 `train-<id>` writes only its own report and status and reads only its own command. Mosquitto drops a publish that the
-ACL forbids without telling the sender, so a train that tries to command another train is simply not heard.
+ACL forbids without telling the sender, so a train that tries to command another train is simply not heard, and no
+one but the zone controller, which never retains a command, can leave a message on a command topic (Mosquitto 2.0
+cannot refuse the retain flag per topic; boards drop retained messages). Packets over MAX_PACKET_BYTES are refused.
 
 `MosquittoProcess` runs a broker on a loopback port (open, or with a generated config) and can kill and restart it on
 the same port: the tests and `cbtc bench` use it.
@@ -26,6 +28,9 @@ from cbtc.errors import BusError, ConfigError
 from cbtc.protocol import wire
 
 ZC_USER = "zc"
+# Largest MQTT packet the broker takes: a payload of the protocol's limit, its topic and headers. Longer ones are
+# refused (the sender is disconnected) before they reach a board, whose link would drop them unread anyway.
+MAX_PACKET_BYTES = wire.MAX_PAYLOAD + 128
 PBKDF2_ITERATIONS = 101   # what mosquitto_passwd 2.0 uses
 SALT_BYTES = 12
 
@@ -69,6 +74,7 @@ def config_text(port: int, folder: str, host: str = "127.0.0.1", secured: bool =
              "per_listener_settings false",
              "listener %d %s" % (port, host),
              "set_tcp_nodelay true",
+             "max_packet_size %d" % MAX_PACKET_BYTES,
              "persistence false",
              "log_dest stderr",
              "log_type error",
