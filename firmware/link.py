@@ -40,6 +40,7 @@ class Link:
     now_ms = 0          # board ms of the current poll, handed on to on_message
     oversized = 0       # messages dropped unread for their size
     retained = 0        # retained messages dropped
+    failed = 0          # messages whose handler raised (a MemoryError, say)
     _next_try_ms = 0
     _head = 0           # first byte of the packet being read (0: none yet)
     _size = 0           # its remaining length, as decoded so far
@@ -170,9 +171,13 @@ class Link:
             raise OSError("malformed PUBLISH")
         if self.on_message is not None:
             view = memoryview(body)
+            topic = str(view[2:2 + n], "utf-8")
+            payload = bytes(view[start:])
+            view = body = self._body = None   # one copy of the message in the heap while it is decoded
             try:
-                self.on_message(str(view[2:2 + n], "utf-8"), bytes(view[start:]), self.now_ms)
+                self.on_message(topic, payload, self.now_ms)
             except Exception as exc:   # the message's fault, not the link's: the stream is intact
+                self.failed += 1
                 self.last_error = "on_message: %r" % (exc,)
         return 1
 

@@ -39,7 +39,10 @@ DEFAULTS = {
     "max_data_age_ms": 1000,  # a command based on an older report of ours is stale and refused (ms)
     "ips_silent_ms": 2000,    # no IPS fix for this long raises the ips_silent fault (ms)
     "stall_ms": 1500,         # duty applied but no encoder counts for this long raises enc_stall (ms)
-    "stop_window_mm": 5,      # the service curve ends this short of the end of authority: 11 mm/s under the trip (mm)
+    "stop_window_mm": 5,      # the service curve ends this short of the end of authority (mm per true m of odometer
+                              # scale): at least reaction^2 dec emergency / (2 (emergency - dec)), 3.4 mm here
+    "enc_slack_mm": 60,       # travel the speed reference may ask for without an encoder count (mm)
+    "drive_margin_pct": 20,   # duty allowed above the feed-forward of the speed reference (%)
     "guard_margin_mm": 100,   # collision guard: measured gap kept beyond the emergency braking distance (mm)
     "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
 }
@@ -49,6 +52,11 @@ _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
 _US_WRAP = const(262144000)   # edge times (us) wrap with the board's ms at 2^18: small ints; spans are < 1 s
 _LEFT_SIDS = const(4)    # sessions remembered as left: a replayed command of any of them is refused
 _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
+_ENC_COUNTS = const(3)   # counts the train surely travelled without one coming: the encoder has failed
+_ADHESION_MMPS2 = const(3000)  # no train stops faster than this (wheel adhesion): counts must keep coming (mm/s^2)
+_ENC_HOLD_MS = const(2000)     # a failed encoder holds the train braked this long after its last sign (ms)
+_SAT_MS = const(300)     # drive at its ceiling this long with the train slower than the reference: encoder failed
+_SLOW_MMPS = const(50)   # what "slower" means there (mm/s)
 
 
 class OnboardUnit:
@@ -65,6 +73,11 @@ class OnboardUnit:
     guard_on = False
     guard_trips = 0
     trips = 0                # times the speed crossed the trip curve (emergency brake)
+    enc_fail_ms = None       # board time of the newest sign of a failed encoder (None: healthy)
+    enc_fails = 0            # times the encoder was found failed
+    _v_edge = 0              # measured speed at the newest count (mm/s)
+    _ref_mm = 0.0            # travel the speed reference asked for since the newest count (mm)
+    _sat_ms = 0              # how long the drive has been at its ceiling with the train slower than asked (ms)
     _left_sids = ()          # controller sessions this unit has left (newest last)
 
     def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
@@ -86,6 +99,20 @@ class OnboardUnit:
                     raise ValueError("unknown OnboardUnit config key %r; known: %s"
                                      % (name, ", ".join(sorted(DEFAULTS))))
                 cfg[name] = config[name]
+        cpm = cfg["counts_per_m"]
+        if not isinstance(cpm, int):
+            if not isinstance(cpm, float) or cpm != int(cpm):
+                raise ValueError("counts_per_m must be a whole number of encoder counts per metre, not %r: round "
+                                 "it (cbtc calibrate encoder prints the value to use)" % (cpm,))
+            cfg = dict(cfg)
+            cfg["counts_per_m"] = int(cpm)
+        r_s = cfg["reaction_ms"] / 1000
+        dec = cfg["dec_mmps2"]
+        emergency = cfg["emergency_dec_mmps2"]
+        if emergency <= dec or cfg["stop_window_mm"] < r_s * r_s * dec * emergency / (2 * (emergency - dec)):
+            raise ValueError("the service curve would cross the trip curve: emergency_dec_mmps2 must exceed "
+                             "dec_mmps2 and stop_window_mm be at least reaction^2 dec emergency / (2 (emergency "
+                             "- dec)) mm")
         self.cfg = cfg
         self._report_topic = wire.topic_report(train_id)
         self._cmd_topic = wire.topic_command(train_id)
@@ -112,7 +139,7 @@ class OnboardUnit:
         self._last_step_ms = None
         # reporting
         self.seq = 0
-        self._next_report_ms = 0
+        self._report_slot_ms = 0      # board time the newest report was due
         self._sent_seq = [-1] * _HISTORY
         self._sent_t = [0] * _HISTORY
         self._ips_fix = None
@@ -172,24 +199,40 @@ class OnboardUnit:
     def step(self, now_ms):
         """One pass of the loop at board time `now_ms` (ms, modulo 2^30: wire.wrap_diff compares board times)."""
         if self._last_step_ms is None:   # the first pass: the board's times start now, whatever its clock reads
-            self._last_step_ms = self._next_report_ms = self._last_move_ms = now_ms
+            self._last_step_ms = self._last_move_ms = now_ms
+            self._report_slot_ms = wire.wrap_add(now_ms, -self.cfg["report_ms"])
         dt_s = wire.wrap_diff(now_ms, self._last_step_ms) / 1000.0
         self._last_step_ms = now_ms
         self._sample(now_ms)
         self._control(now_ms, dt_s)
-        if wire.wrap_diff(now_ms, self._next_report_ms) >= 0:
+        # a report is due a period after the previous one's slot, the period being the valid command's `rpt_ms` (the
+        # controller asks for faster reports while a train behind follows this one closely) or the board's own: it
+        # is chosen at every pass, so a command that expires or changes it takes effect at once. Slots keep the
+        # cadence (a loop period that does not divide the report period must not stretch it) and restart after a stall
+        period = self.cfg["report_ms"]
+        if self.command_valid(now_ms) and self.cmd["rpt_ms"]:
+            period = self.cmd["rpt_ms"]
+        due = wire.wrap_add(self._report_slot_ms, period)
+        if wire.wrap_diff(now_ms, due) >= 0:
             self._report(now_ms)
-            # keep the cadence (a loop period that does not divide the report period must not stretch it); restart
-            # it after a stall. The controller asks for faster reports while a train behind follows this one closely
-            period = self.cfg["report_ms"]
-            if self.command_valid(now_ms) and self.cmd["rpt_ms"]:
-                period = self.cmd["rpt_ms"]
-            due = wire.wrap_add(self._next_report_ms, period)
-            self._next_report_ms = due if wire.wrap_diff(due, now_ms) > 0 else wire.wrap_add(now_ms, period)
+            self._report_slot_ms = due if wire.wrap_diff(wire.wrap_add(due, period), now_ms) > 0 else now_ms
 
     def _sensor_failed(self, name, exc):
         self.sensor_errors += 1
         self.last_sensor_error = "%s: %s" % (name, exc)
+
+    def _encoder_failed(self, now_ms, why):
+        """Hold the train braked (mode trip) for _ENC_HOLD_MS from now, and drop its command: once the hold is over it
+        moves only on a new one, which the controller sends once it has located the train afresh."""
+        if self.enc_fail_ms is None:
+            self.enc_fails += 1
+        self.enc_fail_ms = now_ms
+        self.last_sensor_error = "encoder: " + why
+        self._v_edge = 0
+        self._ref_mm = 0.0
+        self._sat_ms = 0
+        if self.command_valid(now_ms):
+            self.cmd_expiry_ms = now_ms
 
     def _sample(self, now_ms):
         # a failed sensor is counted and named, never allowed to stop the loop
@@ -204,6 +247,7 @@ class OnboardUnit:
             self.odo_mm = odo_mm
         except Exception as exc:
             self._sensor_failed("encoder", exc)
+            self._encoder_failed(now_ms, "read failed")
         try:
             fix = self.ips.poll(now_ms)
             if fix is not None:
@@ -259,6 +303,23 @@ class OnboardUnit:
             # no edge for longer than a count takes at this speed: it is slower, at most a count over that time
             v_mmps = min(v_mmps, 1000000 // cfg["counts_per_m"] * 1000 // age_us)
         self.v_mmps = v_mmps
+        # the encoder against physics and the commanded motion: from the speed at the newest count, braking at the
+        # adhesion limit, the train has surely gone _ENC_COUNTS counts further by now; the speed reference has not
+        # asked for enc_slack_mm more than that; no train runs half again faster than its motor drives it unloaded
+        if count != self._ring_n[i - 1]:
+            self._v_edge = v_mmps
+            self._ref_mm = 0.0
+        elif self._v_edge:
+            t_s = age_us / 1000000
+            v0 = self._v_edge
+            b = _ADHESION_MMPS2
+            moved_mm = v0 * t_s - b * t_s * t_s / 2 if v0 > b * t_s else v0 * v0 / (2 * b)
+            if moved_mm * cfg["counts_per_m"] > _ENC_COUNTS * 1000:
+                self._encoder_failed(now_ms, "no count for %d ms at %d mm/s" % (age_us // 1000, v0))
+        if self._ref_mm * cfg["counts_per_m"] > cfg["enc_slack_mm"] * cfg["counts_per_m"] + _ENC_COUNTS * 1000:
+            self._encoder_failed(now_ms, "no count in %d mm the train was driven" % self._ref_mm)
+        if v_mmps * 2 > cfg["v_noload_mmps"] * 3:
+            self._encoder_failed(now_ms, "%d mm/s, faster than the motor drives" % v_mmps)
 
     def odo_scale(self):
         """Odometer mm per true mm, a low bound from the newest command (1.0 before any): the curves below work in
@@ -271,7 +332,7 @@ class OnboardUnit:
         """The service curve: highest speed (mm/s) from which braking at `dec_mmps2` stops the train at its end of
         authority less the stop window, and at its stop target. The speed loop rides it; safety rests on the trip
         curve above it, which supervises the end of authority alone (a station stop is service, not safety)."""
-        end_mm = self.eoa_mm - self.cfg["stop_window_mm"]
+        end_mm = self.eoa_mm - self.cfg["stop_window_mm"] * self.odo_scale()
         cmd = self.cmd
         if cmd is not None and cmd["stop_mm"] < end_mm:   # the stop target of the newest command (a station)
             end_mm = cmd["stop_mm"]
@@ -312,6 +373,12 @@ class OnboardUnit:
             return
         if self.guard_on:
             self.guard_on = False
+        if self.enc_fail_ms is not None:   # a failed encoder: braked until _ENC_HOLD_MS after its last sign
+            if wire.wrap_diff(now_ms, self.enc_fail_ms) < _ENC_HOLD_MS:
+                self.mode = "trip"
+                self._brake()
+                return
+            self.enc_fail_ms = None
         if self.command_valid(now_ms):
             cmd = self.cmd
             v_cap = min(cmd["v_mmps"], cfg["v_max_mmps"])
@@ -359,9 +426,26 @@ class OnboardUnit:
             self._integral += error * dt_s
             limit = 100.0 / cfg["ki"]
             self._integral = max(-limit, min(limit, self._integral))
-        # feed-forward of speed and acceleration through the first-order motor, then PI on the speed error
-        v_ff = self.v_ref_mmps + a_ref * cfg["motor_tau_ms"] / 1000.0
-        duty = v_ff * 100.0 / cfg["v_noload_mmps"] + cfg["kp"] * error + cfg["ki"] * self._integral
+        # feed-forward of speed and acceleration through the first-order motor, then PI on the speed error, at most
+        # drive_margin_pct above the feed-forward: whatever the encoder reads, the motor is never driven much harder
+        # than the reference needs. A train held at that ceiling and still slower than the reference for _SAT_MS is
+        # not where its encoder says: the encoder reads short
+        self._ref_mm += self.v_ref_mmps * dt_s
+        ff = (self.v_ref_mmps + a_ref * cfg["motor_tau_ms"] / 1000.0) * 100.0 / cfg["v_noload_mmps"]
+        duty = ff + cfg["kp"] * error + cfg["ki"] * self._integral
+        if duty > ff + cfg["drive_margin_pct"]:
+            duty = ff + cfg["drive_margin_pct"]
+            if error > 0 and -200.0 < self._a_lp < 200.0:   # the integral does not wind up against the ceiling
+                self._integral -= error * dt_s
+            if self.v_mmps < self.v_ref_mmps - _SLOW_MMPS:
+                self._sat_ms += int(dt_s * 1000)
+                if self._sat_ms > _SAT_MS:
+                    self._encoder_failed(now_ms, "%d mm/s at full drive for %d mm/s" % (self.v_mmps, self.v_ref_mmps))
+                    self.mode = "trip"
+                    self._brake()
+                    return
+        else:
+            self._sat_ms = 0
         if duty < 0 and self.v_mmps > 0:
             # the motor's own drag at zero duty (v / tau: weak at low speed) is less braking than the curve asks:
             # short the windings for this pass (brake: it cannot reverse the train, as a negative duty could)
@@ -391,6 +475,8 @@ class OnboardUnit:
             faults.append("rfid_absent")
         if self.duty_pct > 30 and wire.wrap_diff(now_ms, self._last_move_ms) > self.cfg["stall_ms"]:
             faults.append("enc_stall")
+        if self.enc_fail_ms is not None:
+            faults.append("enc_fail")
         if self.cmd is not None and not self.command_valid(now_ms):
             faults.append("cmd_timeout")
         if self._rejected_since_report:

@@ -77,9 +77,10 @@ def run(config, now, unit, link, maint, watchdog=None):
         if wire.wrap_diff(now_ms, next_stats_ms) >= 0:
             next_stats_ms = wire.wrap_add(now_ms, config["stats_ms"])
             print("stats: up_ms %d heap_peak %d heap_live %d heap_free %d link %s losses %d mode %s errors %d "
-                  "sensor_errors %d dropped %d %d" % (now_ms, peak, live, gc.mem_free(),
-                                                      "up" if link.connected else "down", link.losses, unit.mode,
-                                                      errors, unit.sensor_errors, link.oversized, link.retained))
+                  "sensor_errors %d dropped %d %d %d" % (now_ms, peak, live, gc.mem_free(),
+                                                         "up" if link.connected else "down", link.losses, unit.mode,
+                                                         errors, unit.sensor_errors, link.oversized, link.retained,
+                                                         link.failed))
         if config["run_ms"] and now_ms >= config["run_ms"]:
             return peak, live
         gc.collect()

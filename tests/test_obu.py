@@ -188,6 +188,33 @@ def test_the_trip_curve_lies_above_the_service_curve_everywhere():
     assert unit.trip_curve_mmps() == pytest.approx(1400 * ((0.0036 + 2000 / 1400) ** 0.5 - 0.06), abs=0.01)
 
 
+def test_the_service_curve_stays_under_the_trip_curve_at_every_scale_and_distance_the_protocol_allows():
+    """The stop window is in true mm, scaled to odometer mm with the decelerations: at every encoder scale a command
+    may state the service curve lies under the trip curve at every distance (by 1.6 mm of stop window at the scale's
+    worst distance); a window left unscaled crossed it from 1500 odometer mm per m."""
+    bench = Bench()
+    bench.step()
+    unit = bench.unit
+    for scale in range(wire.ODO_MM_PER_M_MIN, wire.ODO_MM_PER_M_MAX + 1, 50):
+        bench.command(eoa_mm=100000, odo_mm_per_m=scale)
+        for tenth_mm in list(range(0, 400)) + list(range(400, 50000, 97)):
+            unit.eoa_mm = unit.odo_mm + tenth_mm / 10
+            assert unit.braking_curve_mmps(unit.cfg["dec_mmps2"]) <= unit.trip_curve_mmps(), (scale, tenth_mm)
+
+
+def test_a_stop_window_too_short_for_the_curves_and_a_fractional_encoder_scale_are_refused_at_boot():
+    make = lambda config: obu.OnboardUnit("A", KEY, 9, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print,
+                                          config)
+    with pytest.raises(ValueError, match="counts_per_m must be a whole number.*1043.7"):
+        make({"counts_per_m": 1043.7})
+    assert make({"counts_per_m": 1044.0}).cfg["counts_per_m"] == 1044
+    assert isinstance(make({"counts_per_m": 1044.0}).cfg["counts_per_m"], int)
+    with pytest.raises(ValueError, match="stop_window_mm"):
+        make({"stop_window_mm": 3})
+    with pytest.raises(ValueError, match="emergency_dec_mmps2 must exceed"):
+        make({"emergency_dec_mmps2": 800})
+
+
 def test_with_timed_edges_the_speed_is_exact_and_fresh():
     """An encoder that times its edges gives the speed to the mm/s at every pass, with a lag of about half the speed
     window; counts over the time between passes alone are off by up to a count per window (50 mm/s in 20 ms)."""
@@ -257,7 +284,7 @@ def test_the_curves_hold_in_true_metres_with_the_encoder_scale_the_command_state
         v_true = unit.trip_curve_mmps() / true_scale
         assert v_true * r_s + v_true ** 2 / (2 * cfg["emergency_dec_mmps2"]) <= true_dist_mm + 1e-9, dist_mm
         v_true = unit.braking_curve_mmps(cfg["dec_mmps2"]) / true_scale
-        service_true_mm = (dist_mm - cfg["stop_window_mm"]) / true_scale
+        service_true_mm = (dist_mm - cfg["stop_window_mm"] * unit.odo_scale()) / true_scale
         assert v_true ** 2 / (2 * cfg["dec_mmps2"]) <= service_true_mm + 1e-9, dist_mm
         # and it gives away no more than the bound's slack: within 1 % of the true service rate
         assert v_true ** 2 / (2 * cfg["dec_mmps2"]) >= 0.99 * service_true_mm, dist_mm
@@ -350,3 +377,24 @@ def test_the_report_period_is_the_one_the_controller_asks_for_while_its_command_
     for _ in range(25):                      # 500 ms
         bench.step()
     assert len(bench.sent) - first == 10
+
+
+def test_a_long_report_period_ends_with_its_command():
+    """A command asking for reports every 10 s (the protocol's longest) holds for its 400 ms of validity only: the
+    board reports again on the pass its command expires, at its own 50 ms after, and takes a restart command at once."""
+    bench = Bench()
+    bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    bench.command(rpt_ms=10000, ttl_ms=400)
+    expiry = bench.unit.cmd_expiry_ms
+    sent = len(bench.sent)
+    while wire.wrap_diff(bench.now_ms + 20, expiry) < 0:
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    assert len(bench.sent) == sent, "silent while the command is valid"
+    bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    assert bench.now_ms == expiry and len(bench.sent) == sent + 1 and "cmd_timeout" in bench.last_report()["flt"]
+    for _ in range(10):
+        bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    assert len(bench.sent) == sent + 5                       # 200 ms more at 50 ms
+    bench.command(ttl_ms=800)
+    bench.step(v_mmps=int(bench.unit.v_ref_mmps))
+    assert bench.unit.mode == "run" and bench.unit.rejected == 0

@@ -35,8 +35,21 @@ def assemble():
     del _["drivers"]
 
 
+def _roll(unit, dt_ms):
+    """The wheel under the motor: edges on the encoder's pin, through its interrupt handler, at the speed the duty
+    drives the train unloaded (7.5 mm/s per %), one count per mm; integers only (um), so it adds nothing to the heap."""
+    if unit.motor.mode == "drive":
+        _["um"] = _.get("um", 0) + unit.motor.duty_pct * 15 * dt_ms // 2
+        pin = unit.encoder.pin_a
+        while _["um"] >= 1000:
+            _["um"] -= 1000
+            pin.state ^= 1
+            pin.handler(pin)
+
+
 def one_pass(now_ms):
     """One pass of train.run at board time `now_ms`; returns the heap in use at its end, before collection."""
+    _roll(_["unit"], now_ms - _["ms"])
     _["ms"] = now_ms
     unit, link = _["unit"], _["link"]
     try:

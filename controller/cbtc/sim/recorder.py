@@ -131,6 +131,7 @@ class Recorder:
                 "estimation_max_error_m": None if err is None else round(err["max_abs_m"], 4),
                 "commands_rejected_onboard": train.obu.rejected,
                 "emergency_trips": train.obu.trips,
+                "encoder_trips": train.obu.enc_fails,
                 "reports_rejected": state.reports_rejected,
             })
         return {
@@ -143,6 +144,7 @@ class Recorder:
             "collisions": sum(self.collisions),
             "authority_overruns": sum(self.overruns),
             "emergency_trips": sum(t.obu.trips for t in self.sim.trains),
+            "encoder_trips": sum(t.obu.enc_fails for t in self.sim.trains),
             "all_standing_at_end_s": round(all_standing_s(self.t_s, self.v_mps), 3),
         }
 

@@ -29,6 +29,7 @@ from cbtc.zone.boots import BootTracker
 
 log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
+ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
 
 @dataclass
@@ -73,6 +74,8 @@ class TrainState:
         self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
         self.gap_alarms = 0
         self.deaf_since_s = None     # since when this train's reports have not answered our commands
+        self.encoder_failed = False  # its last report named an encoder fault: located afresh once it is healthy
+        self.encoder_failures = 0
 
     @property
     def train_id(self):
@@ -80,12 +83,16 @@ class TrainState:
 
     def restart(self, estimator):
         """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
-        self.estimator = estimator
+        self.relocate(estimator)
         self.clock = BoardClock()
         self.report = None
+        self.restarts += 1
+
+    def relocate(self, estimator):
+        """Forget where the train is and its odometer's frame: it gets no authority until `estimator` locates it."""
+        self.estimator = estimator
         self.eoa_mm = None
         self.limit_s = None
-        self.restarts += 1
 
 
 class ZoneController:
@@ -169,7 +176,19 @@ class ZoneController:
             state.restart(self._estimator_factory(self.layout, state.setup.profile))
         self._watch_answers(state, recv_s)
         state.clock.observe(report["t_ms"], recv_s)
-        state.estimator.on_report(report, state.clock)
+        if ENCODER_FAULTS.intersection(report["flt"]):
+            # the board has tripped and its odometer may be anywhere: a fresh estimator, fed from the first healthy
+            # report on, locates the train again before it gets authority
+            if not state.encoder_failed:
+                state.encoder_failed = True
+                state.encoder_failures += 1
+                log.warning("train %s: its encoder failed (%s): it gets no authority until it reports healthy and "
+                            "is located again; every train is held meanwhile", train_id,
+                            ", ".join(sorted(ENCODER_FAULTS.intersection(report["flt"]))))
+            state.relocate(self._estimator_factory(self.layout, state.setup.profile))
+        else:
+            state.encoder_failed = False
+            state.estimator.on_report(report, state.clock)
         state.report = report
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
