@@ -216,7 +216,8 @@ print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
     assert rc == 0 and "OK" in out, (out, err)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
     print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
-    # 32.4 KB with the encoder checks and their check here (29.6 before); the board's own figure is test_heap32's, 32.5 KB of 36 KB
+    # 32.4 KB with the encoder checks and their test here (29.6 before); the board's own figure is test_heap32's,
+    # 32.5 KB of 36 KB
     assert peak < 32 * 1024, "leave the ESP8266 room for the network stack and umqtt"
 
 
