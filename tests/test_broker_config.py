@@ -49,7 +49,7 @@ def test_acl_gives_each_train_only_its_own_topics():
 def test_config_text_is_closed_loopback_nodelay_stderr():
     lines = config_text(18830, "/etc/cbtc").splitlines()
     for expected in ("listener 18830 127.0.0.1", "allow_anonymous false", "set_tcp_nodelay true", "log_dest stderr",
-                     "max_packet_size 1152",
+                     "max_packet_size 1152", "use_username_as_clientid true",
                      "password_file /etc/cbtc/passwd", "acl_file /etc/cbtc/acl"):
         assert expected in lines
     assert "user root" in config_text(1, "/x", run_as="root").splitlines()

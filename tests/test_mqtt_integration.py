@@ -201,7 +201,7 @@ def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
     assert summary["trains"]["A"]["last_reject"].endswith("fails authentication (wrong key, or altered in transit)")
     with open(os.path.join(fleet.folder, "zone.err")) as fh:
         log = fh.read()
-    assert "unknown train 'Z'" in log and "dropped report of train A" in log
+    assert "train 'Z' is not in this zone" in log and "train A: invalid report" in log
 
 
 def test_broker_killed_trains_stop_within_authority_then_resume(fleet):
@@ -276,6 +276,31 @@ def test_acl_only_the_controller_commands_a_train(secured_mosquitto):
         assert stored == [] and to_a == [b"from zc"]
     finally:
         for bus in (zc, a, b):
+            bus.disconnect()
+
+
+def test_a_train_reusing_the_controllers_client_id_takes_over_nothing(secured_mosquitto):
+    """Client ids are bound to users: train A's credentials with the controller's client id (or train B's) connect
+    as train A and disconnect neither the controller nor B, which keep hearing each other."""
+    broker, creds = secured_mosquitto(["A", "B"])
+    zc = PahoBus(broker.url, "zc-zc1", username="zc", password=creds["zc"]).start()
+    b = PahoBus(broker.url, "train-B", username="train-B", password=creds["train-B"]).start()
+    intruders = []
+    try:
+        heard = []
+        zc.subscribe("cbtc/train/+/report", lambda t, p: heard.append(t))
+        time.sleep(0.3)
+        for victim in ("zc-zc1", "train-B"):
+            intruders.append(PahoBus(broker.url, victim, username="train-A", password=creds["train-A"]).start())
+        time.sleep(1.0)
+        assert zc.losses == 0 and b.losses == 0 and zc.connects == 1 and b.connects == 1
+        b.publish("cbtc/train/B/report", b"still here")
+        deadline = time.monotonic() + 3
+        while not heard and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert heard == ["cbtc/train/B/report"]
+    finally:
+        for bus in [zc, b] + intruders:
             bus.disconnect()
 
 

@@ -9,6 +9,8 @@ ACL: user `zc` reads every train's report and status and writes every train's co
 ACL forbids without telling the sender, so a train that tries to command another train is simply not heard, and no
 one but the zone controller, which never retains a command, can leave a message on a command topic (Mosquitto 2.0
 cannot refuse the retain flag per topic; boards drop retained messages). Packets over MAX_PACKET_BYTES are refused.
+Each client's id is its user name (`use_username_as_clientid`), so a client that reuses another's client id takes
+over only a session of its own user: a train's credentials can never disconnect the controller or another train.
 
 `MosquittoProcess` runs a broker on a loopback port (open, or with a generated config) and can kill and restart it on
 the same port: the tests and `cbtc bench` use it.
@@ -82,6 +84,7 @@ def config_text(port: int, folder: str, host: str = "127.0.0.1", secured: bool =
              "log_type notice"]
     if secured:
         lines += ["allow_anonymous false",
+                  "use_username_as_clientid true",   # a client id is its user: no one can take over another's session
                   "password_file " + os.path.join(os.path.abspath(folder), "passwd"),
                   "acl_file " + os.path.join(os.path.abspath(folder), "acl")]
     else:

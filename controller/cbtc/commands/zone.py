@@ -90,6 +90,11 @@ def _summary(zc, bus, loop):
         row["stop_overruns"] = state.stop_overruns
         row["commands_sent"] = state.cmd_seq
         row["last_reject"] = state.last_reject
+        row["odometer_jumps"] = state.odometer_jumps
+        row["encoder_failures"] = state.encoder_failures
+        row["handling_failures"] = state.failures
+        row["measurements_dropped"] = state.measurements_dropped
     return {"session_id": zc.session_id, "cycles": zc.cycles, "unknown_reports": zc.unknown_reports,
             "invalid_reports": zc.invalid_reports, "broker_connects": bus.connects, "broker_losses": bus.losses,
-            "callback_errors": loop.inbox.errors, "trains": snapshot}
+            "callback_errors": loop.inbox.errors, "trains": snapshot,
+            "refusals": {f"{train}/{klass}": n for (train, klass), n in sorted(zc.refusals.counts.items())}}

@@ -96,6 +96,10 @@ class OdometryEstimator:
         self._odo_ref_mm = odo_fix_mm
         self._var_ref_m2 = (1.0 - gain) * var
 
+    def healthy(self) -> bool:
+        """Always: its state is a few floats checked as they come (same interface as UkfEstimator.healthy)."""
+        return True
+
     def estimate(self, now_s: float):
         if not self.localized or self._last is None:
             return None

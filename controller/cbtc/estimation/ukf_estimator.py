@@ -19,6 +19,8 @@ import bisect
 import math
 from dataclasses import dataclass, fields
 
+import numpy as np
+
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.fix_consensus import agreeing_anchor
@@ -175,6 +177,21 @@ class UkfEstimator:
         _t, x, P = state.snap
         return 1.0 + float(x[K]) - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
 
+    def healthy(self) -> bool:
+        """The newest state is finite and its covariance positive definite (True while unlocated): the controller
+        locates a train afresh when it is not."""
+        state = self._newest
+        if state is None:
+            return True
+        _t, x, P = state.snap
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            return False
+        try:
+            np.linalg.cholesky(P)
+        except np.linalg.LinAlgError:
+            return False
+        return True
+
     def counters(self) -> dict:
         """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""
         state = self._newest or _State(None)
@@ -295,7 +312,10 @@ class UkfEstimator:
         ranges alone cannot. Called only while unlocated, so every IPS event up to this one is one of those fixes."""
         if event.kind in ("odo", "range"):
             return None
-        d_m, v_mps = self._odometer_at(event.t_s)
+        odometer = self._odometer_at(event.t_s)
+        if odometer is None:   # no encoder report kept yet to place it against
+            return None
+        d_m, v_mps = odometer
         if event.kind == "tag":
             tag_s_m, d_m = event.data
             late_m = abs(v_mps) * self.noise.rfid_poll_s
@@ -323,7 +343,8 @@ class UkfEstimator:
         return used
 
     def _odometer_at(self, t_s):
-        """(odometer m, speed m/s) at board time `t_s`, interpolated between the encoder reports around it."""
+        """(odometer m, speed m/s) at board time `t_s`, interpolated between the encoder reports around it; None when
+        no encoder report is kept."""
         before = after = None
         for e in self._events:
             if e.kind != "odo":
@@ -335,6 +356,8 @@ class UkfEstimator:
                 break
         if before is None:
             before = after
+        if before is None:
+            return None
         if after is None or after is before:
             d_m, v_mps = before.data
             return d_m + v_mps * (t_s - before.t_s), v_mps

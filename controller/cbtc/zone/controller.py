@@ -15,7 +15,9 @@ is stale. Reports that fail validation, come from unknown trains or do not move 
 and dropped.
 """
 
+import hashlib
 import logging
+import math
 import random
 from dataclasses import dataclass, field
 
@@ -25,7 +27,9 @@ from cbtc.firmware import obu
 from cbtc.protocol import wire
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
+from cbtc.zone import plausibility
 from cbtc.zone.boots import BootTracker
+from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
 
 log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
@@ -76,6 +80,10 @@ class TrainState:
         self.deaf_since_s = None     # since when this train's reports have not answered our commands
         self.encoder_failed = False  # its last report named an encoder fault: located afresh once it is healthy
         self.encoder_failures = 0
+        self.odometer_jumps = 0      # reports whose odometer moved further than the train can: located afresh
+        self.measurements_dropped = 0  # fixes, tags and ranges stamped outside their report
+        self.failures = 0            # exceptions in this train's handling: located afresh
+        self.failures_said = set()   # the exception types already logged for it
 
     @property
     def train_id(self):
@@ -124,6 +132,7 @@ class ZoneController:
             self.trains[setup.train_id] = TrainState(setup, estimator_factory(layout, setup.profile))
         self.unknown_reports = 0
         self.invalid_reports = 0
+        self.refusals = RefusalLog(log)
         self.cycles = 0
         self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.ranging.transponder.RangingSensor.sigma_m)
         self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
@@ -144,51 +153,81 @@ class ZoneController:
         self.client.publish(wire.topic_zone_status(self.zone_id), b"online", retain=True)
 
     def on_report(self, topic, payload):
+        """Take one report. Whatever it holds, nothing escapes: a refusal is counted and logged at a bounded rate
+        (cbtc.zone.refusals), and an exception in one train's handling makes that train be located afresh."""
         recv_s = self.now_fn()
         try:
             train_id = wire.train_id_of(topic)
         except wire.WireError as exc:
             self.invalid_reports += 1
-            log.warning("dropped message on %s: %s", topic, exc.reason)
+            self.refusals.note(UNKNOWN, "message", exc.reason, recv_s)
             return
         state = self.trains.get(train_id)
         if state is None:
             self.unknown_reports += 1
-            log.warning("dropped report from unknown train %r on %s: configure it or remove the board", train_id, topic)
+            self.refusals.note(UNKNOWN, "report", f"train {train_id!r} is not in this zone: configure it or remove "
+                               f"the board", recv_s)
             return
         try:
-            report = wire.decode_report(state.setup.key, topic, payload)
+            self._take_report(state, payload, recv_s)
+        except Exception as exc:   # one train's bad data never stops the zone
+            self._train_failed(state, exc, "handling a report", payload, recv_s)
+
+    def _refuse(self, state, klass, reason, recv_s):
+        state.reports_rejected += 1
+        state.last_reject = short(reason)
+        self.refusals.note(state.train_id, klass, reason, recv_s)
+
+    def _take_report(self, state, payload, recv_s):
+        try:
+            report = wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
         except wire.WireError as exc:
-            state.reports_rejected += 1
-            state.last_reject = exc.reason
             self.invalid_reports += 1
-            log.warning("dropped report of train %s: %s", train_id, exc.reason)
+            self._refuse(state, "invalid report", exc.reason, recv_s)
             return
+        previous = state.report if state.report is not None and state.report["boot"] == report["boot"] else None
         reason = state.boots.refusal(report, recv_s)
+        if not reason and previous is not None:
+            reason = plausibility.time_refusal(report, previous, recv_s, state.report_recv_s)
         if reason:
-            state.reports_rejected += 1
-            state.last_reject = reason
-            log.warning("dropped report of train %s: %s", train_id, reason)
+            self._refuse(state, "report", reason, recv_s)
             return
         if state.boots.accept(report, recv_s, self.session_id):
             # a new boot: the board restarted; its clock, odometer and sequence began again
-            log.warning("train %s restarted (boot %d): locating it afresh", train_id, report["boot"])
+            log.warning("train %s restarted (boot %d): locating it afresh", state.train_id, report["boot"])
             state.restart(self._estimator_factory(self.layout, state.setup.profile))
+            previous = None
         self._watch_answers(state, recv_s)
         state.clock.observe(report["t_ms"], recv_s)
-        if ENCODER_FAULTS.intersection(report["flt"]):
+        report, dropped = plausibility.plausible_parts(report, None if previous is None else previous["odo_mm"])
+        if dropped:
+            state.measurements_dropped += dropped
+            self.refusals.note(state.train_id, "measurement", f"{dropped} IPS fix, tag or range stamped outside "
+                               f"its report (t_ms {report['t_ms']})", recv_s)
+        faults = ENCODER_FAULTS.intersection(report["flt"])
+        jump_mm = 0 if previous is None else plausibility.odometer_jump_mm(report, previous,
+                                                                           state.setup.profile.v_noload_mps)
+        if faults:
             # the board has tripped and its odometer may be anywhere: a fresh estimator, fed from the first healthy
             # report on, locates the train again before it gets authority
             if not state.encoder_failed:
                 state.encoder_failed = True
                 state.encoder_failures += 1
-                log.warning("train %s: its encoder failed (%s): it gets no authority until it reports healthy and "
-                            "is located again; every train is held meanwhile", train_id,
-                            ", ".join(sorted(ENCODER_FAULTS.intersection(report["flt"]))))
+                self.refusals.note(state.train_id, "encoder failed", f"{', '.join(sorted(faults))}: no authority "
+                                   f"until it reports healthy and is located again; every train held", recv_s)
             state.relocate(self._estimator_factory(self.layout, state.setup.profile))
         else:
             state.encoder_failed = False
+            if jump_mm:
+                # an odometer the train cannot have travelled: its frame starts again with this report
+                state.odometer_jumps += 1
+                self.refusals.note(state.train_id, "odometer jump", f"{jump_mm} mm further than the train can travel: "
+                                   f"locating it afresh", recv_s)
+                state.relocate(self._estimator_factory(self.layout, state.setup.profile))
             state.estimator.on_report(report, state.clock)
+            if not self._filter_healthy(state):
+                self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
+                                   "updating its filter", payload, recv_s)
         state.report = report
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
@@ -196,6 +235,23 @@ class ZoneController:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
             self._answer(state, recv_s)
+
+    @staticmethod
+    def _filter_healthy(state):
+        healthy = getattr(state.estimator, "healthy", None)
+        return healthy is None or healthy()
+
+    def _train_failed(self, state, exc, where, payload, now_s):
+        """An exception in one train's handling: said once per kind with the payload's digest, never the payload;
+        the train is located afresh (its filter may hold anything) and gets no authority until it is."""
+        state.failures += 1
+        kind = type(exc).__name__
+        if kind not in state.failures_said:
+            state.failures_said.add(kind)
+            data = payload if isinstance(payload, (bytes, bytearray)) else repr(payload).encode()
+            log.error("train %s: %s raised %s (%s; payload sha256 %s): locating it afresh, no authority until then",
+                      state.train_id, where, kind, short(str(exc)), hashlib.sha256(data).hexdigest()[:16])
+        state.relocate(self._estimator_factory(self.layout, state.setup.profile))
 
     def _watch_answers(self, state, recv_s):
         """Warn once when a train's reports have not answered our commands for DEAF_WARN_S: the zone holds every
@@ -214,9 +270,27 @@ class ZoneController:
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
     def located(self):
-        """Train states with a position estimate, ordered by head position along the track."""
-        found = [st for st in self.trains.values() if st.report is not None and st.estimator.localized]
-        return sorted(found, key=lambda st: st.estimator.estimate(st.report_t_s).s_m)
+        """Train states with a finite position estimate, ordered by head position along the track."""
+        found = []
+        for st in self.trains.values():
+            if st.report is not None and st.estimator.localized:
+                s_m = self._position_m(st)
+                if s_m is not None:
+                    found.append((s_m, st))
+        found.sort(key=lambda pair: pair[0])
+        return [st for _s, st in found]
+
+    def _position_m(self, state):
+        """The train's head position (m) at its newest report, or None; a filter that fails or turns non-finite
+        makes its train be located afresh."""
+        try:
+            est = state.estimator.estimate(state.report_t_s)
+            if est is None or (math.isfinite(est.s_m) and math.isfinite(est.sigma_s_m)):
+                return None if est is None else est.s_m
+            raise ValueError("non-finite estimate")
+        except Exception as exc:
+            self._train_failed(state, exc, "estimating its position", b"", self.now_fn())
+            return None
 
     def _all_located(self, located):
         """Every train located, and answering this controller (its reports echo our session): a replayed stream of
@@ -236,6 +310,13 @@ class ZoneController:
             self._update(state, leader, all_located, now_s)
 
     def _update(self, state, leader, all_located, now_s):
+        """Command `state`'s train; an exception makes that train be located afresh, and the others go on."""
+        try:
+            self._authorise(state, leader, all_located, now_s)
+        except Exception as exc:
+            self._train_failed(state, exc, "computing its authority", b"", now_s)
+
+    def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
         if all_located:
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
