@@ -93,6 +93,22 @@ def test_an_old_report_after_a_silence_is_refused_and_a_new_boot_is_a_restart(ca
     assert state.boots.boot == 6 and state.restarts == 1 and "has left" in state.last_reject
 
 
+def test_reports_of_the_boot_a_board_restarted_from_are_refused_until_the_new_boot_answers():
+    """The board restarts; its new boot is not located yet, so it has no command to answer. Reports recorded before
+    the restart (they echo this controller's session) never take the train back to the old boot."""
+    now = [0.0]
+    zc = _zone(now)
+    state = zc.trains["A"]
+    recorded = _stream(zc, now, 5, range(20))
+    _stream(zc, now, 6, range(3), t0_ms=0, answering=False)   # the restart: boot 6, not answering yet
+    assert state.boots.boot == 6 and state.restarts == 1
+    for payload in recorded[-5:]:
+        zc.on_report(wire.topic_report("A"), payload)
+    assert state.boots.boot == 6 and state.restarts == 1 and "the boot before the restart" in state.last_reject
+    _stream(zc, now, 6, range(3, 6), t0_ms=0)             # it answers: the old boot is left for good
+    assert state.boots.left == (5,)
+
+
 def test_a_recorded_boot_never_takes_over_a_board_that_answers():
     now = [0.0]
     zc = _zone(now)

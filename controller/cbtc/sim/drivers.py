@@ -91,6 +91,12 @@ class SimIps:
             arrival_ms = int(now_ms + p.ips_latency_s * 1000)
             self._pending.append((arrival_ms, int(round(xi * 1000)), int(round(yi * 1000))))
 
+    def restart(self) -> None:
+        """The board restarted and its clock begins again: the hedgehog goes on sampling, on the new clock."""
+        self._pending = []
+        self._next_sample_ms = None
+        self.last_fix_ms = None
+
     def poll(self, now_ms: int):
         newest = None
         while self._pending and self._pending[0][0] <= now_ms:

@@ -34,10 +34,20 @@ class TruthMonitor:
         self._inside = [False] * len(trains)
         self.moved_past_eoa_mm = [0] * len(trains)
         self._odo_mm = [None] * len(trains)
+        self._sliding = [False] * len(trains)
+
+    def rebooted(self, i) -> None:
+        """Train i's board has just restarted: it brakes at once, and its slide to a stop, with the new boot's odometer
+        from zero and no authority yet, is no overrun."""
+        self._sliding[i] = True
+        self._odo_mm[i] = None
 
     def sample(self, _now_s=None) -> None:
         trains = self.trains
         for i, train in enumerate(trains):
+            if self._sliding[i]:
+                self._sliding[i] = train.v_mps > 0
+                continue
             odo_mm, before_mm = train.obu.odo_mm, self._odo_mm[i]
             if before_mm is not None and odo_mm > before_mm:
                 past_mm = odo_mm - max(train.obu.eoa_mm, before_mm)

@@ -65,6 +65,7 @@ class VirtualTrain:
         """The board restarts at `now_s`: a new boot id, the odometer from zero, the board's clock from zero."""
         self.encoder.distance_m = 0.0
         self.clock_offset_ms = -int(round(now_s * 1000))
+        self.ips.restart()
         self.obu = self._boot()
 
     def board_ms(self, now_s: float) -> int:

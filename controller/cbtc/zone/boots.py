@@ -7,7 +7,8 @@ one claims an uptime longer than the silence since that boot's last report (a bo
 booted, so that is a replay). A report answers this controller when it echoes its session id (`csid`): proof that it
 was made after one of this controller's commands reached the board, which no recorded report can give. The boot a
 train restarted from joins its left boots only once the new boot has answered, so a replayed boot taking over while
-the real board was out of reach never locks the real board out.
+the real board was out of reach never locks the real board out; until then that boot comes back only with reports
+after the last one taken from it (what it sent before the restart is a replay).
 """
 
 from cbtc.protocol import wire
@@ -24,6 +25,7 @@ class BootTracker:
         self.answered = False    # the newest accepted report echoes this controller's session
         self.left = ()           # boots this train has left, newest last
         self._leaving = None     # the boot a restart came from, until the new boot has answered
+        self._leaving_seq = None  # and its last accepted seq
 
     def refusal(self, report, recv_s):
         """Why `report` (received at `recv_s`) must be dropped, or "" if it moves the picture forward."""
@@ -34,6 +36,8 @@ class BootTracker:
             return ""
         if boot in self.left:
             return f"report of boot {boot}, which this train has left (replayed from before a restart)"
+        if boot == self._leaving and wire.wrap_diff(report["seq"], self._leaving_seq) <= 0:
+            return f"report seq {report['seq']} of boot {boot}, the boot before the restart (a replay)"
         if self.answered and self.last_recv_s is not None:
             silence_s = recv_s - self.last_recv_s
             if report["t_ms"] / 1000.0 > silence_s * 1.02 + UPTIME_SLACK_S:
@@ -45,7 +49,7 @@ class BootTracker:
         """Take a report `refusal` passed; True if it starts a new boot after another (a restart of the board)."""
         restart = self.boot is not None and report["boot"] != self.boot
         if restart and self._leaving is None and self.answered:
-            self._leaving = self.boot
+            self._leaving, self._leaving_seq = self.boot, self.last_seq
         self.boot = report["boot"]
         self.last_seq = report["seq"]
         self.last_recv_s = recv_s

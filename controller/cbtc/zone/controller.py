@@ -401,8 +401,10 @@ class ZoneController:
         # train past its limit; the board's braking curves use it too (odo_mm_per_m)
         scale_low = state.estimator.odometer_per_m_low(self.params.k_sigma)
         if safe_m is None:
-            # no picture of every train: stop now at service rate; the authority never extends
-            v_mps = max(0.0, report["v_mmps"] / 1000.0)
+            # no picture of every train: stop now at service rate; the authority never extends. Its end is the
+            # braking distance from line speed or the reported speed if higher (a report may lie low: an end set
+            # inside the real braking distance would trip the train and slide it past), the stop is the speed cap 0
+            v_mps = max(state.setup.profile.v_max_mps, report["v_mmps"] / 1000.0)
             brake_m = v_mps * state.setup.profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
             eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
         else:

@@ -1,0 +1,73 @@
+"""`cbtc fuzz`: throw bad payloads at a live zone controller and live virtual trains over a real Mosquitto and check
+that nothing got through (experiments/fuzz.py says what is thrown and what each figure means).
+
+Without --broker it starts a private Mosquitto on a free loopback port. Exit status 0 when the controller governs
+every train afterwards and no payload got through; 1 otherwise.
+"""
+
+import argparse
+import logging
+import sys
+
+from cbtc.bus.paho_bus import parse_broker_url
+from cbtc.commands.common import print_json
+from cbtc.errors import ConfigError
+from cbtc.experiments import fuzz
+
+MAX_PAYLOADS = 1_000_000
+
+
+def register(sub):
+    p = sub.add_parser("fuzz", help="throw bad payloads at a live zone and trains over Mosquitto, check nothing got "
+                                    "through", description=__doc__ + "\n" + fuzz.__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--broker", default=None, metavar="URL",
+                   help="mqtt://HOST:PORT of an open broker (default: a private Mosquitto on a free loopback port)")
+    p.add_argument("--payloads", type=int, default=10000, help="bad payloads to throw (default 10000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the payloads and the trains (default 0)")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    if not 1 <= args.payloads <= MAX_PAYLOADS:
+        raise ConfigError(f"--payloads {args.payloads}: give 1 to {MAX_PAYLOADS}")
+    if args.seed < 0:
+        raise ConfigError(f"--seed {args.seed}: give a whole number >= 0")
+    if args.broker is not None:
+        parse_broker_url(args.broker)   # a bad URL is named before anything starts
+    # refusals are counted in the figures; the zone's own lines (a few per kind) would tear the progress bar
+    logging.getLogger("cbtc.zone").setLevel(logging.ERROR)
+    show = not args.json and sys.stderr.isatty()
+    if show:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        with Progress(TextColumn("fuzz"), BarColumn(), TextColumn("{task.completed}/{task.total} payloads"),
+                      TimeRemainingColumn(), transient=True) as bar:
+            task = bar.add_task("fuzz", total=args.payloads)
+            result = fuzz.run_fuzz(args.payloads, args.seed, args.broker,
+                                   lambda done, _total: bar.update(task, completed=done))
+    else:
+        result = fuzz.run_fuzz(args.payloads, args.seed, args.broker)
+    if args.json:
+        print_json(result)
+    else:
+        _print(result)
+    passed = (result["controller_alive"] and not result["uncaught_exceptions"] and not result["accepted_invalid"]
+              and not result["moved_without_authority"])
+    return 0 if passed else 1
+
+
+def _print(r):
+    classes = ", ".join(f"{n} {k}" for k, n in r["by_class"].items())
+    print(f"{r['payloads']} bad payloads ({classes}) over {r['attack_s']} s, seed {r['seed']}")
+    print(f"  uncaught exceptions       {r['uncaught_exceptions']}")
+    print(f"  accepted invalid          {r['accepted_invalid']}" +
+          "".join(f"\n    {example}" for example in r["accepted_invalid_examples"]))
+    print(f"  moved without authority   {r['moved_without_authority']} trains drove past their end of authority "
+          f"(mm: {r['drove_past_eoa_mm']}; braked or sliding past it: {r['moved_past_eoa_mm']})")
+    print(f"  collisions                {r['collisions']}")
+    print(f"  controller alive          {'yes' if r['controller_alive'] else 'NO'} ({r['trains_located']} trains "
+          f"located, {r['trains_moving_after']} moving again, picture finite: {r['picture_finite']})")
+    print(f"  refused: {r['reports_refused']} reports by the controller, {r['commands_refused_onboard']} commands "
+          f"on board")
