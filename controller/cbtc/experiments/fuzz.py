@@ -153,6 +153,8 @@ class Watch:
         self._taken = set()          # (train, boot, seq) of every report the controller took
         self.drove_past_eoa_mm = [0] * len(trains)
         self._odo_mm = [None] * len(trains)
+        self._eoa_mm = [0] * len(trains)
+        self._driving = [False] * len(trains)
         self.examples = []           # what got through, in words (the first few)
         handle = zc.on_report
         cycle = zc.cycle
@@ -193,14 +195,23 @@ class Watch:
         self.cycle = guarded_cycle
         zc.client.publish = recording_publish
 
-    def check_boards(self, _now_s=None):
-        """Every command a board holds is one the controller sent, in its session; and no board drives (motor under
-        power) past the end of authority it holds."""
-        for i, train in enumerate(self.trains):
+    def ticking(self, i):
+        """Train i's tick, watched: the motion of a tick's physics step happens under the motor command and the end
+        of authority the board's step left at the previous tick; counted when the motor drove beyond that end."""
+        train = self.trains[i]
+
+        def tick(now_s):
+            train.tick(now_s)
             odo_mm, before_mm = train.obu.odo_mm, self._odo_mm[i]
+            if before_mm is not None and odo_mm > before_mm and self._driving[i]:
+                self.drove_past_eoa_mm[i] += max(0, odo_mm - max(self._eoa_mm[i], before_mm))
             self._odo_mm[i] = odo_mm
-            if before_mm is not None and odo_mm > before_mm and train.motor.mode == "drive":
-                self.drove_past_eoa_mm[i] += max(0, odo_mm - max(train.obu.eoa_mm, before_mm))
+            self._eoa_mm[i] = train.obu.eoa_mm
+            self._driving[i] = train.motor.mode == "drive"
+        return tick
+
+    def check_boards(self, _now_s=None):
+        """Every command a board holds is one the controller sent, in its session."""
         for train in self.trains:
             cmd = train.obu.cmd
             if cmd is None:
@@ -262,8 +273,8 @@ def _campaign(payloads, seed, url, progress, buses):
     zc.start()
     monitor = TruthMonitor(layout, trains)
     t0 = loop.now_s()
-    for index, train in enumerate(trains):
-        loop.scheduler.call_every(config.loop_s, train.tick, start_s=t0 + 0.001 * (index + 1))
+    for index in range(len(trains)):
+        loop.scheduler.call_every(config.loop_s, watch.ticking(index), start_s=t0 + 0.001 * (index + 1))
     loop.scheduler.call_every(config.loop_s, monitor.sample, start_s=t0 + 0.0105)
     loop.scheduler.call_every(config.loop_s, watch.check_boards, start_s=t0 + 0.0107)
     loop.scheduler.call_every(config.cycle_s, watch.cycle, start_s=t0 + 0.05)
