@@ -42,11 +42,12 @@ def run(args):
     if show:
         from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-        with Progress(TextColumn("fuzz"), BarColumn(), TextColumn("{task.completed}/{task.total} payloads"),
+        with Progress(TextColumn("fuzz"), BarColumn(), TextColumn("{task.fields[sent]} payloads sent"),
                       TimeRemainingColumn(), transient=True) as bar:
-            task = bar.add_task("fuzz", total=args.payloads)
+            task = bar.add_task("fuzz", total=None, sent=0)
             result = fuzz.run_fuzz(args.payloads, args.seed, args.broker,
-                                   lambda done, _total: bar.update(task, completed=done))
+                                   lambda done_s, total_s, sent: bar.update(task, completed=done_s, total=total_s,
+                                                                            sent=sent))
     else:
         result = fuzz.run_fuzz(args.payloads, args.seed, args.broker)
     if args.json:

@@ -228,7 +228,8 @@ class Watch:
 
 
 def run_fuzz(payloads: int, seed: int, broker_url: str = None, progress=None) -> dict:
-    """Run the campaign (see the module); `progress(done, total)` is told of each payload sent."""
+    """Run the campaign (see the module); `progress(elapsed_s, total_s, payloads_sent)` is called four times a
+    second (it takes warm-up + attack + silence + recovery seconds of wall time)."""
     broker = None
     if broker_url is None:
         broker = MosquittoProcess.open_broker(tempfile.mkdtemp(prefix="cbtc-fuzz-")).start()
@@ -299,10 +300,12 @@ def _campaign(payloads, seed, url, progress, buses):
             stranger.publish(topic, payload)
             sent["n"] += 1
             sent["by_class"][klass] += 1
-            if progress is not None:
-                progress(sent["n"], payloads)
 
     loop.scheduler.call_every(0.01, throw, start_s=start_s)
+    total_s = end_s - t0 + 0.5 + RECOVERY_S
+    if progress is not None:
+        loop.scheduler.call_every(0.25, lambda now_s: progress(min(now_s - t0, total_s), total_s, sent["n"]),
+                                  start_s=t0)
 
     def reboot():
         trains[-1].reboot(loop.now_s())
