@@ -3,6 +3,7 @@
 from cbtc.commands.common import run_scenario_and_report
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
+from cbtc.sim import faults
 from cbtc.zone.config import queue_scenario
 
 
@@ -17,6 +18,10 @@ def register(sub):
                    help="fixed block: N equal blocks instead of the layout's own "
                         "(a loop needs more blocks than trains)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
+    p.add_argument("--fault", action="append", default=[], metavar="NAME[:PARAM=VALUE,...]",
+                   help="inject a fault into the simulated world (repeatable); names: "
+                        + ", ".join(f"{name} ({', '.join(f'{k}={v}' for k, v in params.items())})"
+                                    for name, (_what, params) in sorted(faults.FAULTS.items())))
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", default="", help="write a distance-time plot")
     p.set_defaults(func=run)
@@ -27,6 +32,8 @@ def run(args):
     if args.blocks is not None and args.policy != "fixed_block":
         raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
     options = {} if args.blocks is None else {"blocks": args.blocks}
+    injected = tuple(faults.parse(text) for text in args.fault)   # named before the run starts
     config = queue_scenario(layout, args.trains, seed=args.seed, duration_s=args.duration, policy=args.policy,
                             estimator=args.estimator, policy_options=options)
+    config.faults = injected
     return run_scenario_and_report(config, f"{args.trains} trains on {layout.name}, seed {args.seed}", args)

@@ -11,6 +11,7 @@ from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
 from cbtc.protocol import wire
 from cbtc.scheduler import VirtualScheduler
+from cbtc.sim import faults
 from cbtc.sim.recorder import Recorder
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import ScenarioConfig, train_key
@@ -56,6 +57,7 @@ class Simulation:
             self.scheduler.call_every(config.loop_s, self._ticker(train), start_s=0.001 * (index + 1))
         self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
+        faults.inject(self, config.faults)
 
     def _check_not_gridlocked(self):
         """Fixed blocks on a loop: if every train starts within the margin of an occupied block ahead, none can ever

@@ -41,6 +41,7 @@ class ScenarioConfig:
     ranging: dict = None             # RangingSensor settings: every train ranges to the one ahead, guard armed
     obu_overrides: dict = None       # OnboardUnit settings for every train (firmware/obu.py DEFAULTS), e.g. report_ms
     report_budget_hz: float = 400.0  # reports a second the zone controller is sized for (fast reports within it)
+    faults: tuple = ()               # cbtc.sim.faults.Fault values injected into the simulated world
 
 
 def train_key(seed: int, train_id: str) -> bytes:

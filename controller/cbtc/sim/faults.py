@@ -1,0 +1,133 @@
+"""Faults by name, injected into the simulated world (drivers, links, boards, broker), never into the controller.
+
+A fault is written `NAME[:param=value,...]` (`cbtc sim --fault encoder_burst:train=A,at_s=20,counts=200`); `parse`
+checks the name, the parameters and their values before anything runs and says what is allowed. `inject(sim,
+faults)` schedules each on the simulation's clock. FAULTS lists them with their parameters and defaults.
+"""
+
+import math
+from dataclasses import dataclass
+
+from cbtc.bus.mock_broker import LinkProfile
+from cbtc.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Fault:
+    name: str
+    params: dict
+
+    def __str__(self):
+        return self.name + (":" + ",".join(f"{k}={v}" for k, v in sorted(self.params.items())) if self.params else "")
+
+
+# name -> (what it does, {parameter: default}); a default's type is the parameter's type; "train" names a train id
+# (empty: the run's first train)
+FAULTS = {
+    "stop_dead": ("the train stops at once where it is and stays (derailed, blocked)",
+                  {"train": "", "at_s": 20.0}),
+    "reboot": ("the train's board restarts: a new boot id, its odometer and clock from zero",
+               {"train": "", "at_s": 20.0}),
+    "link_loss": ("the train's link loses this share of messages for a while (up: its reports, down: commands)",
+                  {"train": "", "at_s": 20.0, "duration_s": 5.0, "loss": 1.0, "direction": "both"}),
+    "encoder_burst": ("the train's encoder counts this many spurious counts at once",
+                      {"train": "", "at_s": 20.0, "counts": 200}),
+    "encoder_stuck": ("the train's encoder count stands still for a while, whatever the wheel does",
+                      {"train": "", "at_s": 20.0, "duration_s": 5.0}),
+    "ips_offset": ("the train's IPS fixes are placed this far ahead along the track for a while (multipath)",
+                   {"train": "", "at_s": 20.0, "duration_s": 5.0, "offset_m": 0.5}),
+}
+_DIRECTIONS = ("up", "down", "both")
+_WORDS = {int: "a whole number", float: "a number", str: "text"}
+
+
+def parse(text: str) -> Fault:
+    """The Fault of `NAME[:param=value,...]`; ConfigError naming what is wrong and what is allowed."""
+    name, _, rest = text.partition(":")
+    if name not in FAULTS:
+        raise ConfigError(f"fault {name!r} is unknown; known: {', '.join(sorted(FAULTS))}")
+    defaults = FAULTS[name][1]
+    params = dict(defaults)
+    for item in filter(None, rest.split(",")):
+        key, eq, value = item.partition("=")
+        if key not in defaults or not eq:
+            raise ConfigError(f"fault {name}: {item!r} is not PARAM=VALUE with PARAM one of "
+                              f"{', '.join(sorted(defaults))}")
+        kind = type(defaults[key])
+        try:
+            params[key] = kind(value)
+        except ValueError:
+            raise ConfigError(f"fault {name}: {key}={value!r} must be {_WORDS[kind]}") from None
+        if kind is float and not math.isfinite(params[key]):
+            raise ConfigError(f"fault {name}: {key}={value!r} must be a finite number")
+    for key in ("at_s", "duration_s", "counts"):
+        if key in params and params[key] < 0:
+            raise ConfigError(f"fault {name}: {key} must be >= 0, got {params[key]}")
+    if "loss" in params and not 0.0 <= params["loss"] <= 1.0:
+        raise ConfigError(f"fault {name}: loss is a share of messages in [0, 1], got {params['loss']}")
+    if params.get("direction", "both") not in _DIRECTIONS:
+        raise ConfigError(f"fault {name}: direction must be one of {', '.join(_DIRECTIONS)}")
+    return Fault(name, params)
+
+
+def inject(sim, faults) -> None:
+    """Schedule every fault of `faults` (Fault values) on `sim`'s clock; ConfigError for a train it does not have."""
+    trains = {t.train_id: t for t in sim.trains}
+    for fault in faults:
+        train = None
+        if "train" in fault.params:
+            train = trains.get(fault.params["train"] or sim.trains[0].train_id)
+        if "train" in fault.params and train is None:
+            raise ConfigError(f"fault {fault}: no train {fault.params['train']!r} in this run; trains: "
+                              f"{', '.join(sorted(trains))}")
+        _SCHEDULE[fault.name](sim, train, fault.params)
+
+
+def _stop_dead(sim, train, p):
+    sim.scheduler.call_at(p["at_s"], train.stop_dead)
+
+
+def _reboot(sim, train, p):
+    sim.scheduler.call_at(p["at_s"], lambda: train.reboot(sim.scheduler.now_s()))
+
+
+def _link_loss(sim, train, p):
+    client_id = f"train-{train.train_id}"
+    lossy = LinkProfile(latency_s=sim.config.link.latency_s, jitter_s=sim.config.link.jitter_s, loss=p["loss"])
+    up = lossy if p["direction"] in ("up", "both") else None
+    down = lossy if p["direction"] in ("down", "both") else None
+    sim.scheduler.call_at(p["at_s"], sim.broker.set_link, client_id, up, down)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.broker.set_link, client_id,
+                          sim.config.link if up else None, sim.config.link if down else None)
+
+
+def _encoder_burst(sim, train, p):
+    def burst():   # spurious edges are edges: the newest of them is now
+        train.encoder.distance_m += p["counts"] / train.profile.counts_per_m
+        train.encoder._since_edge_s = 0.0
+    sim.scheduler.call_at(p["at_s"], burst)
+
+
+def _encoder_stuck(sim, train, p):
+    encoder = train.encoder
+    real_count = encoder.count
+
+    def stick():
+        frozen = real_count()
+        encoder.count = lambda: frozen
+
+    def release():
+        encoder.count = real_count
+    sim.scheduler.call_at(p["at_s"], stick)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], release)
+
+
+def _ips_offset(sim, train, p):
+    def shift(offset_m):
+        train.ips.offset_m = offset_m
+    sim.scheduler.call_at(p["at_s"], shift, p["offset_m"])
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], shift, 0.0)
+
+
+_SCHEDULE = {"stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "encoder_burst": _encoder_burst,
+             "encoder_stuck": _encoder_stuck, "ips_offset": _ips_offset}

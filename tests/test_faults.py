@@ -1,0 +1,98 @@
+"""Faults by name (cbtc.sim.faults): each parses with its parameters checked, and acts in the simulated world, never in
+the controller; `cbtc sim --fault` runs them."""
+
+import logging
+import subprocess
+import sys
+
+import pytest
+
+from cbtc.errors import ConfigError
+from cbtc.layout_files import load_layout
+from cbtc.sim import faults
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.config import queue_scenario
+
+AT_S = 8.0
+
+
+@pytest.fixture(autouse=True)
+def quiet():
+    logging.disable(logging.WARNING)
+    yield
+    logging.disable(logging.NOTSET)
+
+
+def run(text, until_s):
+    config = queue_scenario(load_layout("itb_square"), 2, seed=0, duration_s=until_s)
+    config.faults = (faults.parse(text),)
+    sim = Simulation(config)
+    sim.scheduler.run_until(AT_S - 0.01)
+    return sim, sim.trains[0], sim.zc.trains["T1"]
+
+
+def test_every_fault_has_a_schedule_and_its_parameters_are_checked():
+    assert set(faults.FAULTS) == set(faults._SCHEDULE)
+    assert str(faults.parse("link_loss:train=T2,loss=0.5")) == \
+        "link_loss:at_s=20.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
+    for text, says in (("nope", "unknown; known: encoder_burst"), ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
+                       ("encoder_burst:counts=x", "a whole number"), ("reboot:at_s=nan", "finite"),
+                       ("link_loss:loss=2", "share of messages"), ("link_loss:direction=sideways", "direction"),
+                       ("encoder_stuck:duration_s=-1", ">= 0")):
+        with pytest.raises(ConfigError, match=says):
+            faults.parse(text)
+
+
+def test_stop_dead_stops_the_train_where_it_is():
+    sim, train, _state = run(f"stop_dead:at_s={AT_S}", 14.0)
+    assert train.v_mps > 0.1
+    sim.scheduler.run_until(14.0)
+    assert train.stopped_dead and train.v_mps == 0.0
+
+
+def test_reboot_restarts_the_board_and_the_zone_locates_it_afresh():
+    sim, train, state = run(f"reboot:at_s={AT_S}", 16.0)
+    sim.scheduler.run_until(16.0)
+    assert train.boots == 2 and state.restarts == 1 and state.boots.boot == train.obu.boot_id
+
+
+def test_link_loss_silences_the_train_for_its_duration():
+    sim, train, state = run(f"link_loss:at_s={AT_S},duration_s=2,direction=up", 12.0)
+    sim.scheduler.run_until(AT_S + 1.9)
+    assert AT_S + 1.9 - state.report_recv_s > 1.8        # nothing heard since the loss began
+    sim.scheduler.run_until(12.0)
+    assert 12.0 - state.report_recv_s < 0.2               # heard again after it
+
+
+def test_encoder_burst_moves_the_odometer_and_not_the_train():
+    sim, train, state = run(f"encoder_burst:at_s={AT_S},counts=300", 9.0)
+    before_mm, true_m = train.obu.odo_mm, train.travelled_m
+    sim.scheduler.run_until(AT_S + 0.05)
+    moved_mm = (train.travelled_m - true_m) * 1000
+    assert train.obu.odo_mm - before_mm > 300 + moved_mm - 5 and state.odometer_jumps >= 1
+
+
+def test_encoder_stuck_freezes_the_count_and_the_board_trips():
+    sim, train, _state = run(f"encoder_stuck:at_s={AT_S},duration_s=3", 12.0)
+    assert train.v_mps > 0.1
+    sim.scheduler.run_until(AT_S + 1.0)
+    assert train.obu.enc_fails >= 1 and train.encoder.count() == train.obu.odo_mm * train.profile.counts_per_m // 1000
+
+
+def test_ips_offset_places_the_fixes_ahead():
+    sim, train, _state = run(f"ips_offset:at_s={AT_S},duration_s=2,offset_m=0.5", 10.0)
+    sim.scheduler.run_until(AT_S + 0.5)
+    assert train.ips.offset_m == 0.5
+    sim.scheduler.run_until(10.0)
+    assert train.ips.offset_m == 0.0
+
+
+def test_sim_takes_faults_and_names_a_bad_one_before_running():
+    def cbtc(*args):
+        return subprocess.run([sys.executable, "-m", "cbtc.cli", "sim", "--layout", "itb_square", "--trains", "2",
+                               *args], capture_output=True, text=True, timeout=120)
+    bad = cbtc("--fault", "reboot:train=Q")
+    assert bad.returncode == 2 and "no train 'Q' in this run; trains: T1, T2" in bad.stderr
+    assert "Traceback" not in bad.stderr
+    good = cbtc("--duration", "12", "--fault", "stop_dead:at_s=5", "--fault", "link_loss:train=T2,at_s=6", "--json")
+    assert good.returncode in (0, 1) and '"collisions"' in good.stdout
