@@ -35,7 +35,7 @@ def test_every_fault_has_a_schedule_and_its_parameters_are_checked():
     assert set(faults.FAULTS) == set(faults._SCHEDULE)
     assert str(faults.parse("link_loss:train=T2,loss=0.5")) == \
         "link_loss:at_s=20.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
-    for text, says in (("nope", "unknown; known: encoder_burst"), ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
+    for text, says in (("nope", "unknown; known: broker_outage"), ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
                        ("encoder_burst:counts=x", "a whole number"), ("reboot:at_s=nan", "finite"),
                        ("link_loss:loss=2", "share of messages"), ("link_loss:direction=sideways", "direction"),
                        ("encoder_stuck:duration_s=-1", ">= 0")):
@@ -96,3 +96,45 @@ def test_sim_takes_faults_and_names_a_bad_one_before_running():
     assert "Traceback" not in bad.stderr
     good = cbtc("--duration", "12", "--fault", "stop_dead:at_s=5", "--fault", "link_loss:train=T2,at_s=6", "--json")
     assert good.returncode in (0, 1) and '"collisions"' in good.stdout
+
+
+def test_ips_blackout_and_rfid_absent_silence_those_sensors_for_a_while():
+    sim, train, state = run(f"ips_blackout:at_s={AT_S},duration_s=2", 11.0)
+    sim.scheduler.run_until(AT_S + 0.3)                   # fixes already in flight have landed
+    used = state.estimator.counters()["ips_used"]
+    sim.scheduler.run_until(AT_S + 1.9)
+    assert train.ips.unplugged and state.estimator.counters()["ips_used"] == used
+    sim.scheduler.run_until(11.0)
+    assert not train.ips.unplugged and state.estimator.counters()["ips_used"] > used
+    sim, train, _state = run(f"rfid_absent:at_s={AT_S},duration_s=2", 11.0)
+    sim.scheduler.run_until(AT_S + 0.5)
+    assert "rfid_absent" in train.obu.faults
+    sim.scheduler.run_until(11.0)
+    assert "rfid_absent" not in train.obu.faults
+
+
+def test_encoder_scale_makes_the_odometer_read_long_for_a_while():
+    sim, train, _state = run(f"encoder_scale:at_s={AT_S},duration_s=2,factor=1.5", 11.0)
+    odo_mm, true_m = train.obu.odo_mm, train.travelled_m
+    sim.scheduler.run_until(AT_S + 2.0)
+    counted_mm, moved_mm = train.obu.odo_mm - odo_mm, (train.travelled_m - true_m) * 1000
+    assert moved_mm > 50 and counted_mm > 1.3 * moved_mm
+    sim.scheduler.run_until(11.0)
+    assert train.encoder.scale_fault == 1.0
+
+
+def test_link_delay_ages_the_trains_reports():
+    sim, train, state = run(f"link_delay:at_s={AT_S},duration_s=3,latency_s=0.3,jitter_s=0,direction=up", 11.5)
+    sim.scheduler.run_until(AT_S + 2.0)
+    assert sim.scheduler.now_s() - state.report_t_s > 0.28     # the newest report the zone has is 0.3 s old
+    sim.scheduler.run_until(11.5)
+    assert sim.scheduler.now_s() - state.report_t_s < 0.2
+
+
+def test_broker_outage_stops_every_train_and_operation_resumes():
+    sim, train, _state = run(f"broker_outage:at_s={AT_S},duration_s=3", 25.0)
+    sim.scheduler.run_until(AT_S + 2.9)
+    assert not sim.broker.running and all(t.v_mps == 0.0 for t in sim.trains)
+    before = [t.travelled_m for t in sim.trains]
+    sim.scheduler.run_until(25.0)
+    assert sim.broker.running and all(t.travelled_m > d + 0.5 for t, d in zip(sim.trains, before))

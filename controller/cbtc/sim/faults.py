@@ -36,6 +36,15 @@ FAULTS = {
                       {"train": "", "at_s": 20.0, "duration_s": 5.0}),
     "ips_offset": ("the train's IPS fixes are placed this far ahead along the track for a while (multipath)",
                    {"train": "", "at_s": 20.0, "duration_s": 5.0, "offset_m": 0.5}),
+    "ips_blackout": ("the train's IPS gives no fix for a while", {"train": "", "at_s": 20.0, "duration_s": 5.0}),
+    "rfid_absent": ("the train's RFID reader is gone for a while", {"train": "", "at_s": 20.0, "duration_s": 5.0}),
+    "encoder_scale": ("the train's encoder counts this many times the true travel for a while (slip below 1, wheel "
+                      "spin above)", {"train": "", "at_s": 20.0, "duration_s": 5.0, "factor": 1.1}),
+    "link_delay": ("the train's link delays every message by this much, plus jitter, for a while",
+                   {"train": "", "at_s": 20.0, "duration_s": 5.0, "latency_s": 0.2, "jitter_s": 0.05,
+                    "direction": "both"}),
+    "broker_outage": ("the broker is down for a while; then every client reconnects",
+                      {"at_s": 20.0, "duration_s": 3.0}),
 }
 _DIRECTIONS = ("up", "down", "both")
 _WORDS = {int: "a whole number", float: "a number", str: "text"}
@@ -60,7 +69,7 @@ def parse(text: str) -> Fault:
             raise ConfigError(f"fault {name}: {key}={value!r} must be {_WORDS[kind]}") from None
         if kind is float and not math.isfinite(params[key]):
             raise ConfigError(f"fault {name}: {key}={value!r} must be a finite number")
-    for key in ("at_s", "duration_s", "counts"):
+    for key in ("at_s", "duration_s", "counts", "factor", "latency_s", "jitter_s"):
         if key in params and params[key] < 0:
             raise ConfigError(f"fault {name}: {key} must be >= 0, got {params[key]}")
     if "loss" in params and not 0.0 <= params["loss"] <= 1.0:
@@ -129,5 +138,47 @@ def _ips_offset(sim, train, p):
     sim.scheduler.call_at(p["at_s"] + p["duration_s"], shift, 0.0)
 
 
+def _for_a_while(sim, p, obj, name, value):
+    """`obj.name` = `value` from at_s for duration_s, then as it was."""
+    def set_to(v):
+        setattr(obj, name, v)
+    sim.scheduler.call_at(p["at_s"], set_to, value)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], set_to, getattr(obj, name))
+
+
+def _ips_blackout(sim, train, p):
+    _for_a_while(sim, p, train.ips, "unplugged", True)
+
+
+def _rfid_absent(sim, train, p):
+    _for_a_while(sim, p, train.rfid, "present", False)
+
+
+def _encoder_scale(sim, train, p):
+    _for_a_while(sim, p, train.encoder, "scale_fault", p["factor"])
+
+
+def _link_delay(sim, train, p):
+    client_id = f"train-{train.train_id}"
+    slow = LinkProfile(latency_s=p["latency_s"], jitter_s=p["jitter_s"], loss=sim.config.link.loss)
+    up = slow if p["direction"] in ("up", "both") else None
+    down = slow if p["direction"] in ("down", "both") else None
+    sim.scheduler.call_at(p["at_s"], sim.broker.set_link, client_id, up, down)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.broker.set_link, client_id,
+                          sim.config.link if up else None, sim.config.link if down else None)
+
+
+def _broker_outage(sim, _train, p):
+    def back():
+        sim.broker.start()
+        for client in sim.clients():
+            client.reconnect()
+        sim.zc.start()
+    sim.scheduler.call_at(p["at_s"], sim.broker.stop)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], back)
+
+
 _SCHEDULE = {"stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "encoder_burst": _encoder_burst,
-             "encoder_stuck": _encoder_stuck, "ips_offset": _ips_offset}
+             "encoder_stuck": _encoder_stuck, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
+             "rfid_absent": _rfid_absent, "encoder_scale": _encoder_scale, "link_delay": _link_delay,
+             "broker_outage": _broker_outage}

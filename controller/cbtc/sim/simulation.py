@@ -59,6 +59,10 @@ class Simulation:
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
         faults.inject(self, config.faults)
 
+    def clients(self):
+        """Every client of the mock broker in this run: the zone's, the trains', the recorder's."""
+        return [self.zc_client] + [t.client for t in self.trains] + [self.recorder._sniffer]
+
     def _check_not_gridlocked(self):
         """Fixed blocks on a loop: if every train starts within the margin of an occupied block ahead, none can ever
         move (each holds a block another needs)."""
