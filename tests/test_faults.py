@@ -37,7 +37,8 @@ def test_every_fault_has_a_schedule_and_its_parameters_are_checked():
         "link_loss:at_s=20.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
     for text, says in (("nope", "unknown; known: broker_outage"), ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
                        ("encoder_burst:counts=x", "a whole number"), ("reboot:at_s=nan", "finite"),
-                       ("link_loss:loss=2", "share of messages"), ("link_loss:direction=sideways", "direction"),
+                       ("link_loss:loss=2", "share of messages"),
+                       ("rfid_misses:share=1", "probability in"), ("link_loss:direction=sideways", "direction"),
                        ("encoder_stuck:duration_s=-1", ">= 0")):
         with pytest.raises(ConfigError, match=says):
             faults.parse(text)
@@ -138,3 +139,16 @@ def test_broker_outage_stops_every_train_and_operation_resumes():
     before = [t.travelled_m for t in sim.trains]
     sim.scheduler.run_until(25.0)
     assert sim.broker.running and all(t.travelled_m > d + 0.5 for t, d in zip(sim.trains, before))
+
+
+def test_ips_outliers_are_gated_and_rfid_misses_read_no_tag_for_a_while():
+    sim, train, state = run(f"ips_outliers:at_s={AT_S},duration_s=4,share=0.6", 12.5)
+    rejected = state.estimator.counters()["ips_rejected"]
+    sim.scheduler.run_until(11.9)
+    assert train.ips._profile.ips_outlier == 0.6 and state.estimator.counters()["ips_rejected"] > rejected + 3
+    sim.scheduler.run_until(12.5)
+    assert train.ips._profile is train.profile
+    sim, train, state = run(f"rfid_misses:at_s={AT_S},duration_s=10,share=0.999", 18.0)
+    used = state.estimator.counters()["tags_used"]
+    sim.scheduler.run_until(17.9)
+    assert train.travelled_m > 3.0 and state.estimator.counters()["tags_used"] == used   # a lap's tags, none read

@@ -45,6 +45,10 @@ FAULTS = {
                     "direction": "both"}),
     "broker_outage": ("the broker is down for a while; then every client reconnects",
                       {"at_s": 20.0, "duration_s": 3.0}),
+    "ips_outliers": ("this share of the train's IPS fixes are outliers (0.3-1.0 m off) for a while",
+                     {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
+    "rfid_misses": ("the train's RFID reader misses this share of tag passages for a while",
+                    {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
 }
 _DIRECTIONS = ("up", "down", "both")
 _WORDS = {int: "a whole number", float: "a number", str: "text"}
@@ -74,6 +78,9 @@ def parse(text: str) -> Fault:
             raise ConfigError(f"fault {name}: {key} must be >= 0, got {params[key]}")
     if "loss" in params and not 0.0 <= params["loss"] <= 1.0:
         raise ConfigError(f"fault {name}: loss is a share of messages in [0, 1], got {params['loss']}")
+    if "share" in params and not 0.0 <= params["share"] < 1.0:
+        raise ConfigError(f"fault {name}: share is a probability in [0, 1) (rfid_absent, ips_blackout: all), got "
+                          f"{params['share']}")
     if params.get("direction", "both") not in _DIRECTIONS:
         raise ConfigError(f"fault {name}: direction must be one of {', '.join(_DIRECTIONS)}")
     return Fault(name, params)
@@ -178,7 +185,15 @@ def _broker_outage(sim, _train, p):
     sim.scheduler.call_at(p["at_s"] + p["duration_s"], back)
 
 
-_SCHEDULE = {"stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "encoder_burst": _encoder_burst,
-             "encoder_stuck": _encoder_stuck, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
-             "rfid_absent": _rfid_absent, "encoder_scale": _encoder_scale, "link_delay": _link_delay,
-             "broker_outage": _broker_outage}
+def _ips_outliers(sim, train, p):
+    _for_a_while(sim, p, train.ips, "_profile", train.profile.with_changes(ips_outlier=p["share"]))
+
+
+def _rfid_misses(sim, train, p):
+    _for_a_while(sim, p, train.rfid, "_profile", train.profile.with_changes(rfid_miss=p["share"]))
+
+
+_SCHEDULE = {"stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
+             "broker_outage": _broker_outage, "encoder_burst": _encoder_burst, "encoder_stuck": _encoder_stuck,
+             "encoder_scale": _encoder_scale, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
+             "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses}
