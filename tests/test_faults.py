@@ -152,3 +152,16 @@ def test_ips_outliers_are_gated_and_rfid_misses_read_no_tag_for_a_while():
     used = state.estimator.counters()["tags_used"]
     sim.scheduler.run_until(17.9)
     assert train.travelled_m > 3.0 and state.estimator.counters()["tags_used"] == used   # a lap's tags, none read
+
+
+def test_controller_restart_stops_the_trains_and_a_new_session_governs_them():
+    sim, train, _state = run(f"controller_restart:at_s={AT_S},duration_s=3", 25.0)
+    old_session = sim.zc.session_id
+    sim.scheduler.run_until(AT_S + 2.9)
+    assert all(t.v_mps == 0.0 for t in sim.trains)        # their commands expired: braked to a stop
+    before = [t.travelled_m for t in sim.trains]
+    sim.scheduler.run_until(25.0)
+    assert sim.zone_restarts == 1 and sim.zc.session_id != old_session
+    assert all(t.obu.sid == sim.zc.session_id for t in sim.trains)
+    assert all(t.travelled_m > d + 0.5 for t, d in zip(sim.trains, before))
+    assert sim.recorder.summary()["collisions"] == 0

@@ -45,6 +45,8 @@ FAULTS = {
                     "direction": "both"}),
     "broker_outage": ("the broker is down for a while; then every client reconnects",
                       {"at_s": 20.0, "duration_s": 3.0}),
+    "controller_restart": ("the zone controller crashes, and a new one (a new session) starts after a while",
+                           {"at_s": 20.0, "duration_s": 3.0}),
     "ips_outliers": ("this share of the train's IPS fixes are outliers (0.3-1.0 m off) for a while",
                      {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
     "rfid_misses": ("the train's RFID reader misses this share of tag passages for a while",
@@ -193,7 +195,12 @@ def _rfid_misses(sim, train, p):
     _for_a_while(sim, p, train.rfid, "_profile", train.profile.with_changes(rfid_miss=p["share"]))
 
 
-_SCHEDULE = {"stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
+def _controller_restart(sim, _train, p):
+    sim.scheduler.call_at(p["at_s"], sim.crash_zone)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.restart_zone)
+
+
+_SCHEDULE = {"controller_restart": _controller_restart, "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
              "broker_outage": _broker_outage, "encoder_burst": _encoder_burst, "encoder_stuck": _encoder_stuck,
              "encoder_scale": _encoder_scale, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
              "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses}

@@ -55,9 +55,27 @@ class Simulation:
         for index, train in enumerate(self.trains):
             # stagger the boards' loops a little, as real boards are
             self.scheduler.call_every(config.loop_s, self._ticker(train), start_s=0.001 * (index + 1))
-        self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
+        self._cycle = self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
+        self._keys = keys
+        self.zone_restarts = 0
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
         faults.inject(self, config.faults)
+
+    def crash_zone(self):
+        """The zone controller's process dies: its connection is cut (its will says offline), no cycle runs."""
+        self.broker.kill_client("zone-controller")
+        self._cycle.cancel()
+
+    def restart_zone(self):
+        """A new zone controller process: a new session, knowing nothing of the trains until they report."""
+        self.zone_restarts += 1
+        self._cycle.cancel()
+        self.zc_client.reconnect()
+        self.zc = build_zone(self.config, self._keys, self.zc_client, self.scheduler.now_s,
+                             seed=self.config.seed + 1000 * self.zone_restarts)
+        self.policy = self.zc.policy
+        self.zc.start()
+        self._cycle = self.scheduler.call_every(self.config.cycle_s, self.zc.cycle)
 
     def clients(self):
         """Every client of the mock broker in this run: the zone's, the trains', the recorder's."""
