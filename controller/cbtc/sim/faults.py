@@ -200,7 +200,8 @@ def _controller_restart(sim, _train, p):
     sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.restart_zone)
 
 
-_SCHEDULE = {"controller_restart": _controller_restart, "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
+_SCHEDULE = {"controller_restart": _controller_restart,
+             "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
              "broker_outage": _broker_outage, "encoder_burst": _encoder_burst, "encoder_stuck": _encoder_stuck,
              "encoder_scale": _encoder_scale, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
              "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses}
