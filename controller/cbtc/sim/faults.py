@@ -109,14 +109,19 @@ def _reboot(sim, train, p):
     sim.scheduler.call_at(p["at_s"], lambda: train.reboot(sim.scheduler.now_s()))
 
 
-def _link_loss(sim, train, p):
+def _link_for_a_while(sim, train, p, profile):
+    """The train's link in p["direction"] follows `profile` from at_s for duration_s, then the run's own again."""
     client_id = f"train-{train.train_id}"
-    lossy = LinkProfile(latency_s=sim.config.link.latency_s, jitter_s=sim.config.link.jitter_s, loss=p["loss"])
-    up = lossy if p["direction"] in ("up", "both") else None
-    down = lossy if p["direction"] in ("down", "both") else None
+    up = profile if p["direction"] in ("up", "both") else None
+    down = profile if p["direction"] in ("down", "both") else None
     sim.scheduler.call_at(p["at_s"], sim.broker.set_link, client_id, up, down)
     sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.broker.set_link, client_id,
                           sim.config.link if up else None, sim.config.link if down else None)
+
+
+def _link_loss(sim, train, p):
+    link = sim.config.link
+    _link_for_a_while(sim, train, p, LinkProfile(latency_s=link.latency_s, jitter_s=link.jitter_s, loss=p["loss"]))
 
 
 def _encoder_burst(sim, train, p):
@@ -168,13 +173,8 @@ def _encoder_scale(sim, train, p):
 
 
 def _link_delay(sim, train, p):
-    client_id = f"train-{train.train_id}"
-    slow = LinkProfile(latency_s=p["latency_s"], jitter_s=p["jitter_s"], loss=sim.config.link.loss)
-    up = slow if p["direction"] in ("up", "both") else None
-    down = slow if p["direction"] in ("down", "both") else None
-    sim.scheduler.call_at(p["at_s"], sim.broker.set_link, client_id, up, down)
-    sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.broker.set_link, client_id,
-                          sim.config.link if up else None, sim.config.link if down else None)
+    _link_for_a_while(sim, train, p, LinkProfile(latency_s=p["latency_s"], jitter_s=p["jitter_s"],
+                                                 loss=sim.config.link.loss))
 
 
 def _broker_outage(sim, _train, p):
