@@ -15,12 +15,12 @@ def run_json(capsys, argv):
 
 
 def test_demo_json_is_reproducible_and_safe(capsys, tmp_path):
-    argv = ["demo", "--json", "--laps", "2", "--seed", "11", "--plot", str(tmp_path / "d.png")]
+    argv = ["demo", "--json", "--laps", "1", "--seed", "11", "--plot", str(tmp_path / "d.png")]
     rc, first = run_json(capsys, argv)
     _, second = run_json(capsys, argv)
     assert rc == 0 and first == second
     assert first["collisions"] == 0 and first["authority_overruns"] == 0
-    assert all(t["laps"] >= 2 and t["station_stops"] >= 2 for t in first["trains"])
+    assert all(t["laps"] >= 1 and t["station_stops"] >= 1 for t in first["trains"])
     assert (tmp_path / "d.png").stat().st_size > 10_000
 
 
