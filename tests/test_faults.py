@@ -33,10 +33,10 @@ def run(text, until_s):
 def test_every_fault_has_a_schedule_and_its_parameters_are_checked():
     assert set(faults.FAULTS) == set(faults._SCHEDULE)
     assert str(faults.parse("link_loss:train=T2,loss=0.5")) == \
-        "link_loss:at_s=20.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
+        "link_loss:at_s=20.0,burst_s=0.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
     for text, says in (("nope", "unknown; known: broker_outage"), ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
                        ("encoder_burst:counts=x", "a whole number"), ("reboot:at_s=nan", "finite"),
-                       ("link_loss:loss=2", "share of messages"),
+                       ("link_loss:loss=2", "share of messages"), ("rollback:v_mps=0", "rolling speed"),
                        ("rfid_misses:share=1", "probability in"), ("link_loss:direction=sideways", "direction"),
                        ("encoder_stuck:duration_s=-1", ">= 0")):
         with pytest.raises(ConfigError, match=says):
@@ -162,3 +162,51 @@ def test_controller_restart_stops_the_trains_and_a_new_session_governs_them():
     assert all(t.obu.sid == sim.zc.session_id for t in sim.trains)
     assert all(t.travelled_m > d + 0.5 for t, d in zip(sim.trains, before))
     assert sim.recorder.summary()["collisions"] == 0
+
+
+def test_link_loss_in_bursts_cuts_the_link_in_whole_outages():
+    sim, train, state = run(f"link_loss:at_s={AT_S},duration_s=6,loss=0.5,burst_s=0.5,direction=up", 15.0)
+    heard = []
+    sim.scheduler.call_every(0.05, lambda now_s: heard.append(now_s - state.report_recv_s), start_s=AT_S + 0.1)
+    sim.scheduler.run_until(15.0)
+    silences = [a for a in heard[:118] if a > 0.3]       # within the fault's window: silences of up to 0.5 s
+    assert silences and max(heard[:118]) < 2.5 and max(heard[125:]) < 0.2
+
+
+def test_link_reorder_and_duplicate_reach_the_zone_which_refuses_the_old_and_the_repeated():
+    for text in ("link_reorder:share=0.5,delay_s=0.2", "link_duplicate:share=0.5"):
+        sim, train, state = run(f"{text},at_s={AT_S},duration_s=3,direction=up", 11.5)
+        refused = state.reports_rejected
+        sim.scheduler.run_until(11.5)
+        assert state.reports_rejected > refused + 5 and train.v_mps > 0.05, text
+        assert sim.recorder.summary()["collisions"] == 0
+
+
+def test_rfid_wrong_tag_reads_tags_that_are_elsewhere():
+    sim, train, state = run(f"rfid_wrong_tag:at_s={AT_S},duration_s=10,share=0.99", 18.0)
+    reads = []
+    real_poll = train.rfid.poll
+
+    def poll(now_ms):
+        uid = real_poll(now_ms)
+        if uid is not None:
+            reads.append((uid, train.head_s))
+        return uid
+    train.rfid.poll = poll
+    sim.scheduler.run_until(18.0)
+    where = {tag.uid: tag.s_m for tag in sim.config.layout.tags}
+    layout = sim.config.layout
+    far = [uid for uid, s_m in reads if min(layout.ahead_m(where[uid], s_m), layout.ahead_m(s_m, where[uid])) > 0.2]
+    assert len(reads) >= 3 and len(far) >= len(reads) - 1
+
+
+def test_rollback_rolls_the_standing_train_back_and_its_encoder_counts_on():
+    sim, train, _state = run(f"rollback:at_s={AT_S},distance_m=0.2,v_mps=0.1", 9.0)
+    sim.scheduler.run_until(AT_S + 0.01)
+    while not train.rolling_back:                         # it waits for the train to stand (at a station)
+        sim.scheduler.run_until(sim.scheduler.now_s() + 0.05)
+        assert sim.scheduler.now_s() < 40.0
+    true_m, count = train.travelled_m, train.encoder.count()
+    sim.scheduler.run_until(sim.scheduler.now_s() + 2.5)
+    assert not train.rolling_back and train.travelled_m < true_m - 0.19 + 0.05
+    assert train.encoder.count() - count > 0.19 * train.profile.counts_per_m

@@ -73,6 +73,24 @@ def test_order_is_kept_with_jitter_and_each_message_arrives_once():
     assert got == list(range(200))
 
 
+def test_a_reordering_link_lets_later_messages_overtake_and_a_duplicating_one_delivers_twice():
+    for link, check in ((LinkProfile(latency_s=0.001, reorder=0.3, reorder_s=0.02),
+                         lambda got: sorted(got) == list(range(200)) and got != sorted(got)),
+                        (LinkProfile(latency_s=0.001, duplicate=0.3),
+                         lambda got: set(got) == set(range(200)) and 30 < len(got) - 200 < 90 and got == sorted(got))):
+        sched, broker = make(seed=3)
+        pub = broker.connect("pub", up=link)
+        sub = broker.connect("sub")
+        got = []
+        sub.subscribe("t/#", lambda topic, payload, got=got: got.append(int(payload)))
+        for i in range(200):
+            sched.call_at(i * 0.005, pub.publish, "t/x", str(i).encode())
+        sched.run_until(5.0)
+        assert check(got), got
+    with pytest.raises(ValueError, match="duplicate in"):
+        LinkProfile(duplicate=1.5)
+
+
 def test_same_seed_same_delivery_times():
     def run(seed):
         sched, broker = make(seed=seed)

@@ -3,9 +3,10 @@
 MQTT semantics where they matter to the testbed: '+'/'#' filters, retained messages (an empty payload deletes),
 last will on abrupt loss (killed client, keep-alive expired; not on a clean disconnect, not on a session takeover),
 clean sessions (subscriptions are lost on reconnect, so the owner resubscribes in `on_connect`), QoS 0 delivery in
-order per connection. Each client has an `up` link (client -> broker) and a `down` link (broker -> client) with
-latency, jitter and loss drawn from the broker's seeded RNG, so the same seed and the same calls give the same
-deliveries at the same virtual times. It is for simulation; the integration tests use a real Mosquitto.
+order per connection (unless a link is set to reorder or duplicate, for fault injection). Each client has an `up`
+link (client -> broker) and a `down` link (broker -> client) with latency, jitter and loss drawn from the broker's
+seeded RNG, so the same seed and the same calls give the same deliveries at the same virtual times. It is for
+simulation; the integration tests use a real Mosquitto.
 """
 
 import functools
@@ -25,10 +26,15 @@ class LinkProfile:
     latency_s: float = 0.002
     jitter_s: float = 0.0     # extra delay, uniform in [0, jitter_s]
     loss: float = 0.0         # probability a message is lost on this link
+    reorder: float = 0.0      # probability a message is held back reorder_s, so that later ones overtake it
+    reorder_s: float = 0.05
+    duplicate: float = 0.0    # probability a message arrives twice (the copy one latency later)
 
     def __post_init__(self):
-        if self.latency_s < 0 or self.jitter_s < 0 or not 0.0 <= self.loss <= 1.0:
-            raise ValueError(f"link profile {self}: latency_s and jitter_s must be >= 0, loss in [0, 1]")
+        shares = (self.loss, self.reorder, self.duplicate)
+        if self.latency_s < 0 or self.jitter_s < 0 or self.reorder_s < 0 or not all(0.0 <= p <= 1.0 for p in shares):
+            raise ValueError(f"link profile {self}: latency_s, jitter_s and reorder_s must be >= 0, loss, reorder "
+                             "and duplicate in [0, 1]")
 
 
 class MockClient(BusClient):
@@ -215,6 +221,17 @@ class MockBroker:
         t = self.scheduler.now_s() + link.latency_s + (self._rng.random() * link.jitter_s if link.jitter_s else 0.0)
         return max(t, last_s)  # QoS 0 over one TCP connection: never overtakes an earlier message
 
+    def _arrivals(self, link, last_s):
+        """(arrival times of one message sent now over `link`, the link's new in-order time): in order after the
+        message arriving at `last_s`; held back by `reorder_s` without holding later ones (they overtake it); twice."""
+        t = self._delay(link, last_s)
+        in_order_s = t
+        if link.reorder and self._rng.random() < link.reorder:
+            t, in_order_s = t + link.reorder_s, last_s
+        if link.duplicate and self._rng.random() < link.duplicate:
+            return (t, t + max(link.latency_s, 0.001)), in_order_s
+        return (t,), in_order_s
+
     def _from_client(self, client, topic, payload, retain):
         self.stats["published"] += 1
         if not client._connected or not self.running:
@@ -223,8 +240,9 @@ class MockBroker:
         if client.up.loss and self._rng.random() < client.up.loss:
             self.stats["dropped_loss"] += 1
             return
-        client._last_up_s = self._delay(client.up, client._last_up_s)
-        self.scheduler.call_at(client._last_up_s, self._arrive, client, client._cuts, topic, payload, retain)
+        times, client._last_up_s = self._arrivals(client.up, client._last_up_s)
+        for t_s in times:
+            self.scheduler.call_at(t_s, self._arrive, client, client._cuts, topic, payload, retain)
 
     def _arrive(self, client, cuts, topic, payload, retain):
         if not self.running or cuts != client._cuts:
@@ -248,8 +266,9 @@ class MockBroker:
         if client.down.loss and self._rng.random() < client.down.loss:
             self.stats["dropped_loss"] += 1
             return
-        client._last_down_s = self._delay(client.down, client._last_down_s)
-        self.scheduler.call_at(client._last_down_s, self._deliver, client, client._conn, topic, payload)
+        times, client._last_down_s = self._arrivals(client.down, client._last_down_s)
+        for t_s in times:
+            self.scheduler.call_at(t_s, self._deliver, client, client._conn, topic, payload)
 
     def _send_retained(self, client, topic_filter):
         for topic, payload in sorted(self._retained.items()):

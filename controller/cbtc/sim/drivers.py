@@ -120,6 +120,7 @@ class SimRfid:
         self._inside = {}   # uid -> True once this passage was decided (read or missed)
         self._images = {tag.uid: balise.image(i + 1, tag.s_m) for i, tag in enumerate(layout.tags)}
         self.present = True
+        self.wrong_tag = 0.0    # fault injection: share of reads that return another tag of the layout
         self.data = None
         self._s_m = 0.0
 
@@ -141,6 +142,9 @@ class SimRfid:
                 continue
             self._inside[tag.uid] = True
             if self._rng.random() >= self._profile.rfid_miss:
+                if self.wrong_tag and len(self._layout.tags) > 1 and self._rng.random() < self.wrong_tag:
+                    others = [t for t in self._layout.tags if t.uid != tag.uid]
+                    tag = others[int(self._rng.integers(len(others)))]
                 self.data = self._read(self._images[tag.uid])
                 return tag.uid
         return None

@@ -6,9 +6,10 @@ faults)` schedules each on the simulation's clock. FAULTS lists them with their 
 """
 
 import math
-from dataclasses import dataclass
+import random
+import zlib
+from dataclasses import dataclass, replace
 
-from cbtc.bus.mock_broker import LinkProfile
 from cbtc.errors import ConfigError
 
 
@@ -28,8 +29,19 @@ FAULTS = {
                   {"train": "", "at_s": 20.0}),
     "reboot": ("the train's board restarts: a new boot id, its odometer and clock from zero",
                {"train": "", "at_s": 20.0}),
-    "link_loss": ("the train's link loses this share of messages for a while (up: its reports, down: commands)",
-                  {"train": "", "at_s": 20.0, "duration_s": 5.0, "loss": 1.0, "direction": "both"}),
+    "link_loss": ("the train's link loses this share of messages for a while (up: its reports, down: commands), each "
+                  "on its own or, with burst_s > 0, in whole outages of burst_s",
+                  {"train": "", "at_s": 20.0, "duration_s": 5.0, "loss": 1.0, "direction": "both", "burst_s": 0.0}),
+    "link_reorder": ("the train's link holds back this share of messages by delay_s for a while, so later ones "
+                     "overtake them", {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.3, "delay_s": 0.1,
+                                       "direction": "both"}),
+    "link_duplicate": ("the train's link delivers this share of messages twice for a while",
+                       {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.3, "direction": "both"}),
+    "rfid_wrong_tag": ("this share of the train's RFID reads return another tag of the layout (a misplaced or "
+                       "swapped tag) for a while", {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
+    "rollback": ("the train, once standing after at_s, rolls back this far at this speed (brakes not holding on a "
+                 "slope); its one-channel encoder counts the roll as forward travel",
+                 {"train": "", "at_s": 20.0, "distance_m": 0.2, "v_mps": 0.05}),
     "encoder_burst": ("the train's encoder counts this many spurious counts at once",
                       {"train": "", "at_s": 20.0, "counts": 200}),
     "encoder_stuck": ("the train's encoder count stands still for a while, whatever the wheel does",
@@ -75,7 +87,8 @@ def parse(text: str) -> Fault:
             raise ConfigError(f"fault {name}: {key}={value!r} must be {_WORDS[kind]}") from None
         if kind is float and not math.isfinite(params[key]):
             raise ConfigError(f"fault {name}: {key}={value!r} must be a finite number")
-    for key in ("at_s", "duration_s", "counts", "factor", "latency_s", "jitter_s"):
+    for key in ("at_s", "duration_s", "counts", "factor", "latency_s", "jitter_s", "burst_s", "delay_s",
+                "distance_m"):
         if key in params and params[key] < 0:
             raise ConfigError(f"fault {name}: {key} must be >= 0, got {params[key]}")
     if "loss" in params and not 0.0 <= params["loss"] <= 1.0:
@@ -83,6 +96,8 @@ def parse(text: str) -> Fault:
     if "share" in params and not 0.0 <= params["share"] < 1.0:
         raise ConfigError(f"fault {name}: share is a probability in [0, 1) (rfid_absent, ips_blackout: all), got "
                           f"{params['share']}")
+    if "v_mps" in params and not 0.0 < params["v_mps"] <= 1.0:
+        raise ConfigError(f"fault {name}: v_mps is a rolling speed in (0, 1] m/s, got {params['v_mps']}")
     if params.get("direction", "both") not in _DIRECTIONS:
         raise ConfigError(f"fault {name}: direction must be one of {', '.join(_DIRECTIONS)}")
     return Fault(name, params)
@@ -120,8 +135,34 @@ def _link_for_a_while(sim, train, p, profile):
 
 
 def _link_loss(sim, train, p):
-    link = sim.config.link
-    _link_for_a_while(sim, train, p, LinkProfile(latency_s=link.latency_s, jitter_s=link.jitter_s, loss=p["loss"]))
+    if p["burst_s"] <= 0.0 or p["loss"] in (0.0, 1.0):
+        _link_for_a_while(sim, train, p, replace(sim.config.link, loss=p["loss"]))
+        return
+    # outages of burst_s with exponential gaps whose mean makes `loss` the share of time lost: drawn from the run's
+    # seed and the fault, so the same run loses the same bursts
+    rng = random.Random(zlib.crc32(f"{sim.config.seed}/{Fault('link_loss', p)}".encode()))
+    mean_gap_s = p["burst_s"] * (1.0 - p["loss"]) / p["loss"]
+    t_s, end_s = p["at_s"] + rng.expovariate(1.0 / mean_gap_s), p["at_s"] + p["duration_s"]
+    while t_s < end_s:
+        burst_s = min(p["burst_s"], end_s - t_s)
+        _link_for_a_while(sim, train, dict(p, at_s=t_s, duration_s=burst_s), replace(sim.config.link, loss=1.0))
+        t_s += burst_s + rng.expovariate(1.0 / mean_gap_s)
+
+
+def _link_reorder(sim, train, p):
+    _link_for_a_while(sim, train, p, replace(sim.config.link, reorder=p["share"], reorder_s=p["delay_s"]))
+
+
+def _link_duplicate(sim, train, p):
+    _link_for_a_while(sim, train, p, replace(sim.config.link, duplicate=p["share"]))
+
+
+def _rfid_wrong_tag(sim, train, p):
+    _for_a_while(sim, p, train.rfid, "wrong_tag", p["share"])
+
+
+def _rollback(sim, train, p):
+    sim.scheduler.call_at(p["at_s"], train.roll_back, p["distance_m"], p["v_mps"])
 
 
 def _encoder_burst(sim, train, p):
@@ -173,8 +214,7 @@ def _encoder_scale(sim, train, p):
 
 
 def _link_delay(sim, train, p):
-    _link_for_a_while(sim, train, p, LinkProfile(latency_s=p["latency_s"], jitter_s=p["jitter_s"],
-                                                 loss=sim.config.link.loss))
+    _link_for_a_while(sim, train, p, replace(sim.config.link, latency_s=p["latency_s"], jitter_s=p["jitter_s"]))
 
 
 def _broker_outage(sim, _train, p):
@@ -204,4 +244,6 @@ _SCHEDULE = {"controller_restart": _controller_restart,
              "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
              "broker_outage": _broker_outage, "encoder_burst": _encoder_burst, "encoder_stuck": _encoder_stuck,
              "encoder_scale": _encoder_scale, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
-             "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses}
+             "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses,
+             "link_reorder": _link_reorder, "link_duplicate": _link_duplicate, "rfid_wrong_tag": _rfid_wrong_tag,
+             "rollback": _rollback}

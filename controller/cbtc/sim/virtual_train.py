@@ -40,6 +40,9 @@ class VirtualTrain:
         self._now_s = 0.0
         self.frozen = False  # a dead board: no loop, no reports, motor state as it was
         self.stopped_dead = False  # fault injection: the train stopped without braking (derailment, obstacle)
+        self._rollback_m = 0.0     # fault injection: still to roll back once standing, at _rollback_mps
+        self._rollback_mps = 0.0
+        self.rolling_back = False
         client.subscribe(wire.topic_command(train_id), self._on_command)
         client.on_connect = self._on_connect
 
@@ -86,12 +89,27 @@ class VirtualTrain:
         self.v_mps = 0.0
         self.a_mps2 = 0.0
 
+    def roll_back(self, distance_m: float, v_mps: float) -> None:
+        """Fault injection: once the train stands, it rolls back `distance_m` at `v_mps` whatever its motor does (a
+        slope its brakes do not hold); the one-channel encoder counts the roll as forward travel."""
+        self._rollback_m, self._rollback_mps = distance_m, v_mps
+
+    def _roll(self, dt_s: float) -> None:
+        ds_m = min(self._rollback_m, self._rollback_mps * dt_s)
+        self.travelled_m -= ds_m
+        self._rollback_m -= ds_m
+        self.rolling_back = self._rollback_m > 1e-9
+        self.encoder.advance(ds_m, dt_s, self._rollback_mps, 0.0)
+
     def tick(self, now_s: float) -> None:
         """Advance physics to `now_s` under the motor command, then run one OnboardUnit loop."""
         dt_s = 0.0 if self._last_s is None else now_s - self._last_s
         self._last_s = now_s
         self._now_s = now_s
-        if dt_s > 0 and not self.stopped_dead:
+        if dt_s > 0 and self._rollback_m > 0.0 and (self.rolling_back or self.v_mps == 0.0):
+            self.rolling_back = True
+            self._roll(dt_s)
+        elif dt_s > 0 and not self.stopped_dead:
             s_before, v_before = self.travelled_m, self.v_mps
             self.travelled_m, self.v_mps, self.a_mps2 = physics.step(
                 self.travelled_m, self.v_mps, self.motor.duty_pct, self.motor.mode, dt_s, self.profile)
