@@ -1,4 +1,9 @@
-"""The recorder of a simulated run: truth, reports and authority limits, and the figures computed from them."""
+"""The recorder of a simulated run: truth, reports and authority limits, and the figures computed from them.
+
+Truth decides: collisions and authority overruns come from the trains' true positions; `granted_beyond_m` is how far
+the authority a board held reached past the true tail of the train ahead (or the end of the line); a train is
+stranded when it stood still over the run's last STRANDED_S with more than its following reach of true room ahead.
+"""
 
 import math
 
@@ -9,6 +14,8 @@ from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
 from cbtc.sim.truth import head_inside, train_ahead
 from cbtc.zone.config import train_key
+
+STRANDED_S = 20.0
 
 
 class Recorder:
@@ -26,8 +33,11 @@ class Recorder:
         self.est_s_m = [[] for _ in range(n)]
         self.est_sigma_m = [[] for _ in range(n)]
         self.constrained = [[] for _ in range(n)]  # the train ahead limits this train's speed now
+        self.following_gap_m = [[] for _ in range(n)]  # true gap at the samples where it is so limited
         self.collisions = [0] * n
         self.overruns = [0] * n
+        self.granted_beyond_m = [-math.inf] * n   # worst (highest) granted room less true room while authorised
+        self.room_m = [math.inf] * n             # true room ahead at the newest sample
         self._colliding = [False] * n
         self._overrun = [False] * n
         self.reports = [[] for _ in range(n)]     # (recv_s, report dict)
@@ -52,6 +62,7 @@ class Recorder:
         spans = [(t.train_id, t.head_s, t.tail_s) for t in trains]
         ahead = train_ahead(layout, heads)
         for i, train in enumerate(trains):
+            self._granted(i, train, now_s, heads, ahead)
             self.travelled_m[i].append(train.travelled_m)
             self.head_s_m[i].append(heads[i])
             self.v_mps[i].append(train.v_mps)
@@ -65,6 +76,8 @@ class Recorder:
                 self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
             state = self.sim.zc.trains[train.train_id]
             self.constrained[i].append(state.safe_m is not None and state.safe_m < following_reach_m(train.profile))
+            if i in ahead and self.constrained[i][-1]:
+                self.following_gap_m[i].append(self.gap_m[i][-1])
             over = self.sim.policy.protected_m(layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i]:
                 self.overruns[i] += 1
@@ -74,6 +87,35 @@ class Recorder:
                 est = state.estimator.estimate(now_s)
             self.est_s_m[i].append(math.nan if est is None else est.s_m)
             self.est_sigma_m[i].append(math.nan if est is None else est.sigma_s_m)
+
+    def _granted(self, i, train, now_s, heads, ahead):
+        """True room ahead of train i now, and how far the authority its board holds reaches beyond it."""
+        layout = self.layout
+        if i in ahead:
+            tail_s = self.sim.trains[ahead[i]].tail_s
+            room_m = layout.ahead_m(heads[i], tail_s)
+            if head_inside(layout, heads[i], tail_s, self.sim.trains[ahead[i]].profile.length_m):
+                room_m = -layout.ahead_m(tail_s, heads[i])
+        elif layout.closed:
+            room_m = layout.length_m - train.profile.length_m
+        else:
+            room_m = layout.length_m - heads[i]
+        self.room_m[i] = room_m
+        obu = train.obu
+        if obu.command_valid(train.board_ms(now_s)):
+            # odometer mm to true m with the wheel's known error (what the zone's learnt scale converges to)
+            granted_m = (obu.eoa_mm - obu.odo_mm) / 1000.0 / (1.0 + train.profile.encoder_scale_error)
+            self.granted_beyond_m[i] = max(self.granted_beyond_m[i], granted_m - room_m)
+
+    def stranded(self, i) -> bool:
+        """Train i stood still over the last STRANDED_S of a run at least twice that long, with more than its following
+        reach of true room ahead, and not because the world stopped it dead."""
+        train = self.sim.trains[i]
+        if not self.t_s or self.t_s[-1] - self.t_s[0] < 2 * STRANDED_S or train.stopped_dead:
+            return False
+        k = next(k for k in range(len(self.t_s) - 1, -1, -1) if self.t_s[-1] - self.t_s[k] >= STRANDED_S)
+        moved_m = max(self.travelled_m[i][k:]) - min(self.travelled_m[i][k:])
+        return moved_m < 0.01 and self.room_m[i] > following_reach_m(train.profile) + self.sim.config.params.margin_m
 
     # --- figures --------------------------------------------------------------------------------------------------
 
@@ -126,6 +168,8 @@ class Recorder:
                 "min_gap_m": None if gaps is None else round(float(np.min(gaps)), 3),
                 "collisions": self.collisions[i],
                 "authority_overruns": self.overruns[i],
+                "granted_beyond_m": _metres(self.granted_beyond_m[i]),
+                "stranded": self.stranded(i),
                 "station_stops": state.dwells,
                 "estimation_rmse_m": None if err is None else round(err["rmse_m"], 4),
                 "estimation_max_error_m": None if err is None else round(err["max_abs_m"], 4),
@@ -134,6 +178,10 @@ class Recorder:
                 "encoder_trips": train.obu.enc_fails,
                 "reports_rejected": state.reports_rejected,
             })
+        gaps = [g for i in range(len(self.sim.trains)) for g in self.gap_m[i]]
+        following = [g for i in range(len(self.sim.trains)) for g in self.following_gap_m[i]]
+        laps = [t for i in range(len(self.sim.trains)) for t in self.lap_times(i)]
+        beyond = [b for b in self.granted_beyond_m if b > -math.inf]
         return {
             "layout": self.layout.name,
             "policy": self.sim.policy.name,
@@ -143,10 +191,19 @@ class Recorder:
             "trains": trains,
             "collisions": sum(self.collisions),
             "authority_overruns": sum(self.overruns),
+            "granted_beyond_m": _metres(max(beyond)) if beyond else None,
+            "stranded": sum(t["stranded"] for t in trains),
+            "mean_following_gap_m": round(float(np.mean(following)), 3) if following else None,
+            "min_gap_m": round(float(np.min(gaps)), 3) if gaps else None,
+            "mean_lap_s": round(float(np.mean(laps)), 3) if laps else None,
             "emergency_trips": sum(t.obu.trips for t in self.sim.trains),
             "encoder_trips": sum(t.obu.enc_fails for t in self.sim.trains),
             "all_standing_at_end_s": round(all_standing_s(self.t_s, self.v_mps), 3),
         }
+
+
+def _metres(value):
+    return None if value == -math.inf else round(float(value), 4)
 
 
 def all_standing_s(t_s, v_mps_by_train):
