@@ -22,7 +22,7 @@ COMMANDS = (
     "guard",
     "flash",
     "calibrate",
-    "zone", "trains", "keys", "broker", "bench", "fuzz",
+    "zone", "trains", "keys", "broker", "bench", "fuzz", "campaign",
 )
 
 

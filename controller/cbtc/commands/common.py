@@ -30,10 +30,12 @@ TRAIN_COLUMNS = [("train", "train"), ("laps", "laps"), ("mean_lap_s", "mean lap 
 
 
 def run_scenario_and_report(config, title, args) -> int:
-    """Run a scenario, draw `args.plot` if set, print the per-train table or `--json`; exit 1 on any collision."""
+    """Run a scenario, draw `args.plot` if set, print the per-train table or `--json`; exit 1 on any safety violation
+    (a collision, an authority overrun, an authority reaching beyond the train ahead)."""
     import time
 
     from cbtc.experiments.plots import distance_time_png
+    from cbtc.sim.recorder import violations
     from cbtc.sim.simulation import Simulation
 
     started = time.perf_counter()
@@ -48,14 +50,16 @@ def run_scenario_and_report(config, title, args) -> int:
         print(f"{title}: {summary['simulated_s']} s simulated in {wall_s:.1f} s "
               f"(policy {summary['policy']}, estimator {summary['estimator']})")
         print(format_table(summary["trains"], TRAIN_COLUMNS))
+        beyond = summary["granted_beyond_m"]
         print(f"collisions {summary['collisions']}, authority overruns {summary['authority_overruns']}, "
-              f"emergency trips {summary['emergency_trips']}")
+              f"authority beyond the train ahead {'-' if beyond is None else f'{beyond:+.3f} m'} (worst; > 0 is a "
+              f"violation), emergency trips {summary['emergency_trips']}, stranded trains {summary['stranded']}")
         if summary["all_standing_at_end_s"] > 20.0:
             print(f"warning: every train stood still for the last {summary['all_standing_at_end_s']:.0f} s: gridlock? "
                   f"(fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
         if args.plot:
             print(f"distance-time plot: {args.plot}")
-    return 0 if summary["collisions"] == 0 else 1
+    return 1 if violations(summary) else 0
 
 
 def write_json(path: str, data) -> None:

@@ -1,10 +1,9 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
 from cbtc.commands.common import run_scenario_and_report
-from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
 from cbtc.sim import faults
-from cbtc.zone.config import queue_scenario
+from cbtc.sim.runs import sim_config
 
 
 def register(sub):
@@ -29,11 +28,6 @@ def register(sub):
 
 def run(args):
     layout = load_layout(args.layout)
-    if args.blocks is not None and args.policy != "fixed_block":
-        raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
-    options = {} if args.blocks is None else {"blocks": args.blocks}
-    injected = tuple(faults.parse(text) for text in args.fault)   # named before the run starts
-    config = queue_scenario(layout, args.trains, seed=args.seed, duration_s=args.duration, policy=args.policy,
-                            estimator=args.estimator, policy_options=options)
-    config.faults = injected
+    config = sim_config(layout, args.trains, args.seed, args.duration, args.policy, args.estimator, args.blocks,
+                        args.fault)
     return run_scenario_and_report(config, f"{args.trains} trains on {layout.name}, seed {args.seed}", args)

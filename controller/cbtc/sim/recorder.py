@@ -103,8 +103,9 @@ class Recorder:
         self.room_m[i] = room_m
         obu = train.obu
         if obu.command_valid(train.board_ms(now_s)):
-            # odometer mm to true m with the wheel's known error (what the zone's learnt scale converges to)
-            granted_m = (obu.eoa_mm - obu.odo_mm) / 1000.0 / (1.0 + train.profile.encoder_scale_error)
+            # odometer mm to true m at the rate the wheel counts now (its error, and a slip or spin fault)
+            counts_per_true_m = (1.0 + train.profile.encoder_scale_error) * train.encoder.scale_fault
+            granted_m = (obu.eoa_mm - obu.odo_mm) / 1000.0 / counts_per_true_m
             self.granted_beyond_m[i] = max(self.granted_beyond_m[i], granted_m - room_m)
 
     def stranded(self, i) -> bool:
@@ -200,6 +201,19 @@ class Recorder:
             "encoder_trips": sum(t.obu.enc_fails for t in self.sim.trains),
             "all_standing_at_end_s": round(all_standing_s(self.t_s, self.v_mps), 3),
         }
+
+
+def violations(summary) -> list:
+    """The safety violations truth found in a run (a summary of Recorder.summary): a collision, an authority overrun
+    (a head inside the protected zone behind the train ahead), an authority that reached beyond the train ahead."""
+    found = []
+    if summary["collisions"]:
+        found.append("collision")
+    if summary["authority_overruns"]:
+        found.append("authority_overrun")
+    if summary["granted_beyond_m"] is not None and summary["granted_beyond_m"] > 0.0:
+        found.append("authority_beyond_reality")
+    return found
 
 
 def _metres(value):

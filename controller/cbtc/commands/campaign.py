@@ -1,0 +1,164 @@
+"""`cbtc campaign`: seeded simulation runs over fault classes x layouts x fleet sizes, judged by truth.
+
+Each run is a `cbtc sim` command with one fault drawn from its seed (experiments/campaign.py says which run is
+which). Runs are made in worker processes on every core, or on a Dask cluster with --scheduler; each finished run
+is kept in the results file at once, so a stopped campaign, run again, makes only the missing runs. Exit status 1
+when any run has a violation (a collision, an authority overrun, an authority reaching beyond the train ahead), each
+printed with the `cbtc sim` command that reproduces it alone; 0 otherwise.
+"""
+
+import argparse
+import os
+import sys
+import time
+
+from cbtc.commands.common import format_table, print_json
+from cbtc.errors import ConfigError
+from cbtc.experiments import campaign
+from cbtc.sim.runs import sim_config
+
+MAX_RUNS = 1_000_000
+
+
+def register(sub):
+    p = sub.add_parser("campaign", help="seeded runs over fault classes, layouts and fleet sizes, judged by truth",
+                       description=__doc__ + "\n" + campaign.__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--runs", type=int, default=100, help="number of runs (default 100)")
+    p.add_argument("--fault", action="append", default=[], metavar="CLASS[:PARAM=VALUE,...]",
+                   help="a fault class to run (repeatable; default: every class); parameters given are kept, the "
+                        "others drawn per run; classes: " + ", ".join(campaign.CLASSES))
+    p.add_argument("--layouts", default=",".join(campaign.LAYOUTS), metavar="NAMES",
+                   help=f"layouts, comma-separated (default {','.join(campaign.LAYOUTS)})")
+    p.add_argument("--trains", default="2-6", metavar="COUNTS",
+                   help="fleet sizes: a range 2-6 or a list 2,4 (default 2-6)")
+    p.add_argument("--duration", type=float, default=60.0, help="simulated seconds per run (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first run; run k has seed + k (default 0)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help=f"worker processes on this machine (default: every core, {os.cpu_count()})")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on this Dask distributed cluster instead, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("--results", default="campaign-results.jsonl", metavar="FILE",
+                   help="finished runs, kept and reused (default campaign-results.jsonl)")
+    p.add_argument("--fresh", action="store_true", help="forget the results file's runs and make every run again")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    p.set_defaults(func=run)
+
+
+def fleet_sizes(text: str) -> tuple:
+    """'2-6' -> (2, 3, 4, 5, 6); '2,4' -> (2, 4); ConfigError otherwise."""
+    try:
+        if "-" in text:
+            low, high = (int(v) for v in text.split("-"))
+            sizes = tuple(range(low, high + 1))
+        else:
+            sizes = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise ConfigError(f"--trains {text!r}: give a range such as 2-6 or a list such as 2,4") from None
+    if not sizes or min(sizes) < 1:
+        raise ConfigError(f"--trains {text!r}: give fleet sizes of 1 train or more, such as 2-6")
+    return sizes
+
+
+def checked_plan(args):
+    """Every argument checked and every run planned before any run starts."""
+    if not 1 <= args.runs <= MAX_RUNS:
+        raise ConfigError(f"--runs {args.runs}: give 1 to {MAX_RUNS}")
+    if not 10.0 <= args.duration <= 3600.0:
+        raise ConfigError(f"--duration {args.duration}: give 10 to 3600 simulated seconds per run")
+    if args.seed < 0:
+        raise ConfigError(f"--seed {args.seed}: give a whole number >= 0")
+    if args.workers < 1:
+        raise ConfigError(f"--workers {args.workers}: give 1 or more")
+    classes = campaign.parse_classes(args.fault or campaign.CLASSES)
+    layouts = tuple(name.strip() for name in args.layouts.split(",") if name.strip())
+    if not layouts:
+        raise ConfigError(f"--layouts {args.layouts!r}: give layout names, such as itb_square,lego_oval")
+    sizes = fleet_sizes(args.trains)
+    for layout in layouts:
+        for n in sizes:
+            sim_config(layout, n, 0, args.duration)       # the layout loads and the fleet fits on it
+    specs = campaign.plan(args.runs, classes, layouts, sizes, args.duration, args.seed)
+    for spec in specs:                                    # a train named in a class exists in every run
+        sim_config(spec.layout, spec.trains, spec.seed, spec.duration_s, fault_texts=spec.faults)
+        for text in spec.faults:
+            train = campaign.faults.parse(text).params.get("train", "")
+            if train and (not train[1:].isdigit() or int(train[1:]) > spec.trains):
+                raise ConfigError(f"--fault {text}: no train {train} in a run of {spec.trains} trains "
+                                  f"({spec.command()})")
+    return specs
+
+
+def run(args):
+    from cbtc.experiments.campaign_runner import ResultsFile, run_dask, run_local
+
+    specs = checked_plan(args)
+    results = ResultsFile(args.results)
+    if args.fresh:
+        results.clear()
+    todo = [spec for spec in specs if spec.command() not in results.records]
+    reused = len(specs) - len(todo)
+    if results.unreadable and not args.json:
+        print(f"campaign: {results.unreadable} unreadable lines in {args.results} (a run cut short?) are ignored; "
+              f"their runs are made again", file=sys.stderr)
+    where = f"Dask cluster {args.scheduler}" if args.scheduler else f"{min(args.workers, max(1, len(todo)))} workers"
+    if not args.json:
+        print(f"campaign: {len(specs)} runs of {args.duration:g} s ({reused} already in {args.results}), "
+              f"{len(todo)} to make on {where}", flush=True)
+    started = time.perf_counter()
+    show = not args.json and sys.stderr.isatty() and todo
+    try:
+        if show:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+            with Progress(TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TextColumn("runs"),
+                          TimeRemainingColumn(), transient=True) as bar:
+                task = bar.add_task("campaign", total=len(todo))
+
+                def done(record):
+                    results.add(record)
+                    bar.advance(task)
+                _make(todo, args, done, run_dask, run_local)
+        else:
+            _make(todo, args, results.add, run_dask, run_local)
+    except KeyboardInterrupt:
+        made = sum(1 for spec in todo if spec.command() in results.records)
+        print(f"campaign: stopped; {made} of {len(todo)} runs made are kept in {args.results}: run the same command "
+              f"again to make the rest", file=sys.stderr)
+        raise
+    figures = campaign.tables(specs, results.records)
+    figures.update({"runs_made": len(todo), "runs_reused": reused, "wall_s": round(time.perf_counter() - started, 1),
+                    "where": where, "results": args.results})
+    if args.json:
+        print_json(figures)
+    else:
+        _print(figures)
+    return 1 if figures["violations"] else 0
+
+
+def _make(todo, args, done, run_dask, run_local):
+    if args.scheduler:
+        run_dask(todo, args.scheduler, done)
+    else:
+        run_local(todo, min(args.workers, max(1, len(todo))), done)
+
+
+COLUMNS = [("class", "fault class"), ("runs", "runs"), ("runs_with_violations", "violating"),
+           ("collisions", "collisions"), ("authority_overruns", "overruns"),
+           ("worst_granted_beyond_m", "beyond m"), ("emergency_trips", "trips"), ("stranded", "stranded"),
+           ("mean_following_gap_m", "follow gap m"), ("worst_gap_m", "worst gap m"), ("mean_lap_s", "lap s")]
+
+
+def _print(f):
+    rows = [dict(v, **{"class": cls}) for cls, v in f["by_fault"].items()]
+    rows.append(dict({k: v for k, v in f.items() if k not in ("by_fault", "violations")}, **{"class": "all"}))
+    print(format_table(rows, COLUMNS))
+    print(f"{f['runs']} runs ({f['runs_made']} made now in {f['wall_s']} s on {f['where']}, {f['runs_reused']} "
+          f"reused); beyond m: the worst reach of an authority past the true tail of the train ahead (> 0 is a "
+          f"violation)")
+    if f["violations"]:
+        print(f"{len(f['violations'])} runs with violations; each reproduces alone with:")
+        for v in f["violations"]:
+            print(f"  {'+'.join(v['kinds'])}: {v['command']}")
+    else:
+        print("no violations")

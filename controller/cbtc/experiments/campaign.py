@@ -1,0 +1,178 @@
+"""A fault campaign: seeded `cbtc sim` runs over fault classes x layouts x fleet sizes, each judged by truth.
+
+Run k of a plan takes fault class k mod C, then the next layout, then the next fleet size, with seed `seed + k`; the
+fault's train, time and size are drawn from that seed within CAMPAIGN_RANGES (parameters given with the class, as in
+`rollback:distance_m=0.3`, are kept as given). So run k is the same whatever the number of runs: a longer campaign
+reuses a shorter one's results. Every run is a `cbtc sim` command (`RunSpec.command`), and `run_one` builds it as
+`cbtc sim` does, so the command printed for a violation reproduces it alone. `none` is the fault-free reference;
+`combined` injects two faults of different classes in one run.
+"""
+
+import logging
+import math
+import random
+import time
+from dataclasses import asdict, dataclass
+
+from cbtc.errors import ConfigError
+from cbtc.sim import faults
+from cbtc.sim.recorder import violations
+
+NONE, COMBINED = "none", "combined"
+CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED,)
+LAYOUTS = ("itb_square", "lego_oval")
+FLEET_SIZES = (2, 3, 4, 5, 6)
+
+# fault class -> {parameter: (low, high) drawn uniformly, or a tuple of choices}; "train" and "at_s" are drawn for
+# every class that has them
+CAMPAIGN_RANGES = {
+    "stop_dead": {},
+    "reboot": {},
+    "link_loss": {"duration_s": (1.0, 8.0), "loss": (0.3, 1.0), "burst_s": (0.0, 0.0, 0.3, 1.0)},
+    "link_delay": {"duration_s": (2.0, 8.0), "latency_s": (0.05, 0.5), "jitter_s": (0.0, 0.1)},
+    "link_reorder": {"duration_s": (2.0, 8.0), "share": (0.1, 0.5), "delay_s": (0.02, 0.3)},
+    "link_duplicate": {"duration_s": (2.0, 8.0), "share": (0.1, 0.5)},
+    "broker_outage": {"duration_s": (0.5, 5.0)},
+    "controller_restart": {"duration_s": (0.5, 5.0)},
+    "encoder_burst": {"counts": (50, 600)},
+    "encoder_stuck": {"duration_s": (0.5, 5.0)},
+    "encoder_scale": {"duration_s": (1.0, 8.0), "factor": (0.7, 1.5)},
+    "ips_offset": {"duration_s": (1.0, 8.0), "offset_m": (0.2, 1.0)},
+    "ips_outliers": {"duration_s": (2.0, 10.0), "share": (0.2, 0.8)},
+    "ips_blackout": {"duration_s": (2.0, 15.0)},
+    "rfid_absent": {"duration_s": (5.0, 20.0)},
+    "rfid_misses": {"duration_s": (5.0, 20.0), "share": (0.3, 0.95)},
+    "rfid_wrong_tag": {"duration_s": (5.0, 20.0), "share": (0.2, 0.9)},
+    "rollback": {"distance_m": (0.05, 0.3), "v_mps": (0.02, 0.1)},
+}
+# per-class figures: counted over the runs (sums), or their worst, or their mean
+_SUMS = ("collisions", "authority_overruns", "emergency_trips", "encoder_trips", "stranded")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a campaign: a `cbtc sim` command."""
+
+    fault_class: str
+    layout: str
+    trains: int
+    seed: int
+    duration_s: float
+    faults: tuple   # fault texts, NAME:param=value,... with every parameter written out
+
+    def command(self) -> str:
+        """The `cbtc sim` command that makes this run alone."""
+        words = ["cbtc sim", f"--layout {self.layout}", f"--trains {self.trains}", f"--seed {self.seed}",
+                 f"--duration {self.duration_s:g}"] + [f"--fault {text}" for text in self.faults]
+        return " ".join(words)
+
+
+def parse_classes(texts) -> list:
+    """Fault classes as given to --faults: a class name, `none`, `combined`, or NAME:param=value,... with some
+    parameters fixed; ConfigError naming an unknown one."""
+    classes = []
+    for text in texts:
+        name = text.partition(":")[0]
+        if name in (NONE, COMBINED):
+            if ":" in text:
+                raise ConfigError(f"fault class {text!r}: {name} takes no parameters")
+        else:
+            faults.parse(text)
+        classes.append(text)
+    if not classes:
+        raise ConfigError("no fault classes: give names from " + ", ".join(CLASSES))
+    return classes
+
+
+def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int) -> list:
+    """The RunSpecs of a campaign of `runs` runs (module docstring: which run is which)."""
+    specs = []
+    for k in range(runs):
+        cls = classes[k % len(classes)]
+        combo = k // len(classes)
+        layout = layouts[combo % len(layouts)]
+        n = fleet_sizes[(combo // len(layouts)) % len(fleet_sizes)]
+        run_seed = seed + k
+        specs.append(RunSpec(cls, layout, n, run_seed, duration_s, draw_faults(cls, run_seed, n, duration_s)))
+    return specs
+
+
+def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float) -> tuple:
+    """The fault texts of class `cls` (as given to --faults) for a run: drawn from `seed`, the same on every machine."""
+    rng = random.Random(f"{cls}/{seed}")
+    if cls == NONE:
+        return ()
+    if cls == COMBINED:
+        first, second = rng.sample(sorted(CAMPAIGN_RANGES), 2)
+        return (_draw(first, rng, n_trains, duration_s), _draw(second, rng, n_trains, duration_s))
+    return (_draw(cls, rng, n_trains, duration_s),)
+
+
+def _draw(text, rng, n_trains, duration_s) -> str:
+    name, _, given = text.partition(":")
+    named = {item.partition("=")[0] for item in given.split(",") if item}
+    fixed = {k: v for k, v in faults.parse(text).params.items() if k in named}
+    defaults = faults.FAULTS[name][1]
+    params = {}
+    if "train" in defaults:
+        params["train"] = f"T{rng.randrange(n_trains) + 1}"
+    if "at_s" in defaults:
+        low_s = min(10.0, 0.25 * duration_s)
+        params["at_s"] = round(rng.uniform(low_s, max(low_s, min(30.0, duration_s - 30.0))), 1)
+    for key, span in CAMPAIGN_RANGES[name].items():
+        kind = type(defaults[key])
+        value = rng.choice(span) if len(span) > 2 else rng.uniform(*span)
+        params[key] = int(round(value)) if kind is int else round(value, 3)
+    params.update(fixed)
+    return str(faults.Fault(name, dict(defaults, **params)))
+
+
+def run_one(spec: RunSpec) -> dict:
+    """Make one run and return its record: the spec, the summary figures, the violations, the wall time."""
+    from cbtc.sim.runs import sim_config
+    from cbtc.sim.simulation import Simulation
+
+    logging.getLogger("cbtc").setLevel(logging.ERROR)   # the figures count what the zone would log
+    started = time.perf_counter()
+    config = sim_config(spec.layout, spec.trains, spec.seed, spec.duration_s, fault_texts=spec.faults)
+    summary = Simulation(config).run().summary()
+    keep = ("collisions", "authority_overruns", "granted_beyond_m", "emergency_trips", "encoder_trips", "stranded",
+            "mean_following_gap_m", "min_gap_m", "mean_lap_s", "simulated_s")
+    return {"command": spec.command(), "spec": asdict(spec), "summary": {k: summary[k] for k in keep},
+            "violations": violations(summary), "wall_s": round(time.perf_counter() - started, 3)}
+
+
+def tables(specs, records: dict) -> dict:
+    """The campaign's figures over `specs` from `records` ({command: record}): totals, `by_fault` (the same keys per
+    fault class, in the order of the classes) and `violations` (each with its reproducing command)."""
+    by_fault = {}
+    for spec in specs:
+        by_fault.setdefault(spec.fault_class, [])
+        if spec.command() in records:
+            by_fault[spec.fault_class].append(records[spec.command()])
+    result = _figures([r for rows in by_fault.values() for r in rows])
+    result["by_fault"] = {cls: _figures(rows) for cls, rows in by_fault.items()}
+    result["violations"] = [{"command": r["command"], "kinds": r["violations"], "fault_class": r["spec"]["fault_class"],
+                             "layout": r["spec"]["layout"], "trains": r["spec"]["trains"], "seed": r["spec"]["seed"],
+                             "collisions": r["summary"]["collisions"],
+                             "authority_overruns": r["summary"]["authority_overruns"],
+                             "granted_beyond_m": r["summary"]["granted_beyond_m"]}
+                            for rows in by_fault.values() for r in rows if r["violations"]]
+    return result
+
+
+def _figures(rows) -> dict:
+    out = {"runs": len(rows)}
+    for key in _SUMS:
+        out[key] = sum(r["summary"][key] for r in rows)
+    out["runs_with_violations"] = sum(1 for r in rows if r["violations"])
+    beyond = [r["summary"]["granted_beyond_m"] for r in rows if r["summary"]["granted_beyond_m"] is not None]
+    out["worst_granted_beyond_m"] = max(beyond) if beyond else None
+    gaps = [r["summary"]["mean_following_gap_m"] for r in rows if r["summary"]["mean_following_gap_m"] is not None]
+    out["mean_following_gap_m"] = round(sum(gaps) / len(gaps), 3) if gaps else None
+    worst = [r["summary"]["min_gap_m"] for r in rows if r["summary"]["min_gap_m"] is not None]
+    out["worst_gap_m"] = min(worst) if worst else None
+    laps = [r["summary"]["mean_lap_s"] for r in rows if r["summary"]["mean_lap_s"] is not None]
+    out["mean_lap_s"] = round(sum(laps) / len(laps), 3) if laps else None
+    out["simulated_s"] = round(math.fsum(r["summary"]["simulated_s"] for r in rows), 1)
+    return out

@@ -1,0 +1,23 @@
+"""The configuration of one `cbtc sim` run from its command-line values: `cbtc sim` and `cbtc campaign` build it here,
+so a campaign's printed command reproduces its run exactly."""
+
+from cbtc.errors import ConfigError
+from cbtc.layout_files import load_layout
+from cbtc.sim import faults
+from cbtc.zone.config import queue_scenario
+
+
+def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = "moving_block",
+               estimator: str = "ukf", blocks=None, fault_texts=()):
+    """The ScenarioConfig of `cbtc sim --layout LAYOUT --trains N ... --fault F...` (`layout`: a name, a file or a
+    loaded Layout); ConfigError for any bad value, before anything runs."""
+    if isinstance(layout, str):
+        layout = load_layout(layout)
+    if blocks is not None and policy != "fixed_block":
+        raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
+    options = {} if blocks is None else {"blocks": blocks}
+    injected = tuple(faults.parse(text) for text in fault_texts)
+    config = queue_scenario(layout, trains, seed=seed, duration_s=duration_s, policy=policy, estimator=estimator,
+                            policy_options=options)
+    config.faults = injected
+    return config

@@ -1,0 +1,99 @@
+"""`cbtc campaign`: a plan that is the same on every machine, runs judged by truth, a results file that lets a stopped
+campaign finish only its missing runs, a Dask cluster giving the same table, and every violation reproduced alone by
+its printed `cbtc sim` command."""
+
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from cbtc.cli import main
+from cbtc.experiments import campaign
+from cbtc.sim import faults
+
+SMALL = ["campaign", "--runs", "20", "--duration", "10", "--trains", "2", "--layouts", "itb_square"]
+
+
+def figures(capsys, argv):
+    status = main(argv + ["--json"])
+    out = json.loads(capsys.readouterr().out)
+    return status, out
+
+
+def test_the_plan_is_drawn_from_the_seeds_alone_and_a_longer_campaign_extends_a_shorter_one():
+    args = (campaign.CLASSES, campaign.LAYOUTS, campaign.FLEET_SIZES, 60.0, 0)
+    short, long = campaign.plan(40, *args), campaign.plan(400, *args)
+    assert long[:40] == short and campaign.plan(40, *args) == short
+    assert {spec.fault_class for spec in long} == set(campaign.CLASSES)
+    assert {(spec.layout, spec.trains) for spec in long} == {(lay, n) for lay in campaign.LAYOUTS for n in range(2, 7)}
+    for spec in long:
+        assert all(faults.parse(text) for text in spec.faults)
+        assert len(spec.faults) == {"none": 0, "combined": 2}.get(spec.fault_class, 1)
+        for text in spec.faults:
+            params = faults.parse(text).params
+            assert 10.0 <= params.get("at_s", 10.0) <= 30.0 and int(params.get("train", "T1")[1:]) <= spec.trains
+    fixed = campaign.plan(5, ["rollback:distance_m=0.3"], ["itb_square"], (3,), 60.0, 7)
+    assert all(faults.parse(spec.faults[0]).params["distance_m"] == 0.3 for spec in fixed)
+    assert len({faults.parse(spec.faults[0]).params["v_mps"] for spec in fixed}) == 5   # the others are drawn
+    assert fixed[0].command().startswith("cbtc sim --layout itb_square --trains 3 --seed 7 --duration 60 --fault "
+                                         "rollback:at_s=")
+
+
+def test_bad_values_are_named_before_any_run(tmp_path, capsys):
+    results = str(tmp_path / "r.jsonl")
+    for extra, says in ((["--runs", "0"], "--runs 0"), (["--trains", "2-x"], "--trains '2-x'"),
+                        (["--trains", "0"], "1 train or more"), (["--layouts", "nowhere"], "nowhere"),
+                        (["--duration", "5"], "--duration 5.0"), (["--fault", "nope"], "unknown"),
+                        (["--fault", "stop_dead:train=T9"], "no train T9 in a run of 2 trains"),
+                        (["--trains", "40"], "do not fit"), (["--workers", "0"], "--workers 0"),
+                        (["--results", str(tmp_path / "no" / "r.jsonl")], "does not exist")):
+        assert main(SMALL + ["--results", results] + extra) == 2, extra
+        err = capsys.readouterr().err
+        assert says in err and "Traceback" not in err, (extra, err)
+    assert not os.path.exists(results)
+
+
+def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, capsys):
+    results = tmp_path / "r.jsonl"
+    argv = ["cbtc"] + SMALL + ["--results", str(results), "--workers", "1"]
+    proc = subprocess.Popen([sys.executable, "-m", "cbtc.cli"] + argv[1:], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while (not results.exists() or len(results.read_text().splitlines()) < 4) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _out, err = proc.communicate(timeout=30)
+    kept = len(results.read_text().splitlines())
+    assert proc.returncode == 130 and "run the same command again" in err and 4 <= kept < 20
+    with results.open("a") as fh:
+        fh.write('{"command": "cbtc sim --lay')          # a line cut short by a kill: its run is made again
+    status, first = figures(capsys, SMALL + ["--results", str(results)])
+    assert first["runs"] == 20 and first["runs_reused"] == kept and first["runs_made"] == 20 - kept
+    status_again, again = figures(capsys, SMALL + ["--results", str(results)])
+    assert again["runs_made"] == 0 and again["by_fault"] == first["by_fault"] and status_again == status
+    assert set(first["by_fault"]) == set(campaign.CLASSES) and first["by_fault"]["none"]["runs"] == 1
+    for key in ("runs", "collisions", "authority_overruns", "emergency_trips", "stranded", "violations"):
+        assert key in first and all(key in row for row in first["by_fault"].values() if key != "violations")
+    # exit 1 exactly when a run broke the rules, and each printed command reproduces its violation alone
+    assert status == (1 if first["violations"] else 0)
+    for violation in first["violations"][:2]:
+        argv = shlex.split(violation["command"])
+        assert argv[:2] == ["cbtc", "sim"]
+        assert main(argv[1:] + ["--json"]) == 1
+        alone = json.loads(capsys.readouterr().out)
+        assert alone["granted_beyond_m"] == violation["granted_beyond_m"]
+        assert (alone["collisions"], alone["authority_overruns"]) == (violation["collisions"],
+                                                                      violation["authority_overruns"])
+    # the same runs on a local Dask cluster of worker processes: the same table
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        status_dask, on_dask = figures(capsys, SMALL + ["--results", str(tmp_path / "dask.jsonl"),
+                                                        "--scheduler", cluster.scheduler_address])
+    assert on_dask["runs_made"] == 20 and status_dask == status
+    assert on_dask["by_fault"] == first["by_fault"] and on_dask["violations"] == first["violations"]
