@@ -16,7 +16,7 @@ from cbtc.cli import main
 from cbtc.experiments import campaign
 from cbtc.sim import faults
 
-SMALL = ["campaign", "--runs", "20", "--duration", "10", "--trains", "2", "--layouts", "itb_square"]
+SMALL = ["campaign", "--runs", "20", "--duration", "6", "--trains", "2", "--layouts", "itb_square"]
 
 
 def figures(capsys, argv):
@@ -48,7 +48,7 @@ def test_bad_values_are_named_before_any_run(tmp_path, capsys):
     results = str(tmp_path / "r.jsonl")
     for extra, says in ((["--runs", "0"], "--runs 0"), (["--trains", "2-x"], "--trains '2-x'"),
                         (["--trains", "0"], "1 train or more"), (["--layouts", "nowhere"], "nowhere"),
-                        (["--duration", "5"], "--duration 5.0"), (["--fault", "nope"], "unknown"),
+                        (["--duration", "4"], "--duration 4.0"), (["--fault", "nope"], "unknown"),
                         (["--fault", "stop_dead:train=T9"], "no train T9 in a run of 2 trains"),
                         (["--trains", "40"], "do not fit"), (["--workers", "0"], "--workers 0"),
                         (["--results", str(tmp_path / "no" / "r.jsonl")], "does not exist")):

@@ -93,9 +93,9 @@ def test_faulty_leader_guard_prevents_the_collision_that_happens_without_it():
     from cbtc.experiments.guard import run_guard_case
     from cbtc.layout_files import load_layout
     layout = load_layout("itb_square")
-    for seed in range(2):   # `cbtc guard --seeds N` runs more
-        off = run_guard_case(layout, seed, guard=False, duration_s=40.0)
-        on = run_guard_case(layout, seed, guard=True, duration_s=40.0)
+    for seed in range(2):   # `cbtc guard --seeds N` runs more, and longer (the leader fails within 20 s)
+        off = run_guard_case(layout, seed, guard=False, duration_s=20.0)
+        on = run_guard_case(layout, seed, guard=True, duration_s=20.0)
         assert off["follower_collisions"] > 0, off
         assert on["collisions"] == 0 and on["guard_trips"] > 0, on
         assert on["min_gap_m"] > 0.0

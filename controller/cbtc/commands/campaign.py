@@ -64,8 +64,8 @@ def checked_plan(args):
     """Every argument checked and every run planned before any run starts."""
     if not 1 <= args.runs <= MAX_RUNS:
         raise ConfigError(f"--runs {args.runs}: give 1 to {MAX_RUNS}")
-    if not 10.0 <= args.duration <= 3600.0:
-        raise ConfigError(f"--duration {args.duration}: give 10 to 3600 simulated seconds per run")
+    if not 5.0 <= args.duration <= 3600.0:
+        raise ConfigError(f"--duration {args.duration}: give 5 to 3600 simulated seconds per run")
     if args.seed < 0:
         raise ConfigError(f"--seed {args.seed}: give a whole number >= 0")
     if args.workers < 1:
