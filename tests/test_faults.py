@@ -210,3 +210,16 @@ def test_rollback_rolls_the_standing_train_back_and_its_encoder_counts_on():
     sim.scheduler.run_until(sim.scheduler.now_s() + 2.5)
     assert not train.rolling_back and train.travelled_m < true_m - 0.19 + 0.05
     assert train.encoder.count() - count > 0.19 * train.profile.counts_per_m
+
+
+def test_the_fault_table_of_the_docs_lists_every_fault_with_its_parameters_and_campaign_ranges():
+    import pathlib
+
+    from cbtc.experiments import campaign
+    doc = (pathlib.Path(__file__).parent.parent / "docs" / "faults.md").read_text()
+    rows = {line.split("|")[1].strip(" `"): line for line in doc.splitlines() if line.startswith("| `")}
+    assert set(faults.FAULTS) <= set(rows) and set(campaign.CAMPAIGN_RANGES) == set(faults.FAULTS)
+    for name, (what, params) in faults.FAULTS.items():
+        assert what in rows[name], name
+        assert all(f"`{k}={v}`" in rows[name] for k, v in params.items()), name
+        assert all(f"`{k}`" in rows[name] for k in campaign.CAMPAIGN_RANGES[name]), name
