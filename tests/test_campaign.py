@@ -97,3 +97,32 @@ def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, caps
                                                         "--scheduler", cluster.scheduler_address])
     assert on_dask["runs_made"] == 20 and status_dask == status
     assert on_dask["by_fault"] == first["by_fault"] and on_dask["violations"] == first["violations"]
+
+
+def test_a_terminal_sees_a_progress_bar_with_the_time_left_and_json_sees_none(tmp_path):
+    import pty
+    import select
+
+    argv = [sys.executable, "-m", "cbtc.cli", "campaign", "--runs", "3", "--duration", "5", "--trains", "2",
+            "--layouts", "itb_square", "--workers", "1", "--results", str(tmp_path / "r.jsonl")]
+    master, slave = pty.openpty()
+    env = dict(os.environ, COLUMNS="100", TERM="xterm")
+    proc = subprocess.Popen(argv, stdin=slave, stdout=slave, stderr=slave, env=env)
+    os.close(slave)
+    seen = b""
+    while True:
+        ready, _, _ = select.select([master], [], [], 60)
+        try:
+            chunk = os.read(master, 4096) if ready else b""
+        except OSError:                                  # the terminal closed with the process
+            chunk = b""
+        if not chunk:
+            break
+        seen += chunk
+    os.close(master)
+    assert proc.wait(timeout=30) in (0, 1)
+    text = seen.decode(errors="replace")
+    assert "campaign" in text and "/3" in text and ("-:--:--" in text or "0:00:0" in text), text[-2000:]
+    quiet = subprocess.run(argv[:-2] + ["--results", str(tmp_path / "q.jsonl"), "--json"], capture_output=True,
+                           text=True, timeout=60)
+    assert "━" not in quiet.stderr and json.loads(quiet.stdout)["runs"] == 3
