@@ -76,6 +76,11 @@ def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, caps
     assert first["runs"] == 20 and first["runs_reused"] == kept and first["runs_made"] == 20 - kept
     status_again, again = figures(capsys, SMALL + ["--results", str(results)])
     assert again["runs_made"] == 0 and again["by_fault"] == first["by_fault"] and status_again == status
+    # a run made by other code (a changed estimator, say) is made again, not reused
+    lines = results.read_text().splitlines()
+    record = json.loads(lines[0])
+    results.write_text("\n".join([json.dumps(dict(record, code="other"))] + lines[1:]) + "\n")
+    assert figures(capsys, SMALL + ["--results", str(results)])[1]["runs_made"] == 1
     assert set(first["by_fault"]) == set(campaign.CLASSES) and first["by_fault"]["none"]["runs"] == 1
     for key in ("runs", "collisions", "authority_overruns", "emergency_trips", "stranded", "violations"):
         assert key in first and all(key in row for row in first["by_fault"].values() if key != "violations")

@@ -98,6 +98,9 @@ def run(args):
         results.clear()
     todo = [spec for spec in specs if spec.command() not in results.records]
     reused = len(specs) - len(todo)
+    if results.other_code and not args.json:
+        print(f"campaign: {results.other_code} runs in {args.results} were made by other code (it changed since): "
+              f"they are made again", file=sys.stderr)
     if results.unreadable and not args.json:
         print(f"campaign: {results.unreadable} unreadable lines in {args.results} (a run cut short?) are ignored; "
               f"their runs are made again", file=sys.stderr)

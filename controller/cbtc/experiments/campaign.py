@@ -8,8 +8,12 @@ reuses a shorter one's results. Every run is a `cbtc sim` command (`RunSpec.comm
 `combined` injects two faults of different classes in one run.
 """
 
+import functools
+import hashlib
+import importlib
 import logging
 import math
+import os
 import random
 import time
 from dataclasses import asdict, dataclass
@@ -139,7 +143,26 @@ def run_one(spec: RunSpec) -> dict:
     keep = ("collisions", "authority_overruns", "granted_beyond_m", "emergency_trips", "encoder_trips", "stranded",
             "mean_following_gap_m", "min_gap_m", "mean_lap_s", "simulated_s")
     return {"command": spec.command(), "spec": asdict(spec), "summary": {k: summary[k] for k in keep},
-            "violations": violations(summary), "wall_s": round(time.perf_counter() - started, 3)}
+            "violations": violations(summary), "wall_s": round(time.perf_counter() - started, 3),
+            "code": code_fingerprint()}
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """A digest of the code that makes a run (cbtc, the firmware, the packaged layouts): a results file's run made by
+    other code (a changed estimator or authority rule) is made again, not reused."""
+    digest = hashlib.sha256()
+    for package in ("cbtc", "cbtc.firmware", "cbtc.track_layouts"):
+        root = os.path.dirname(importlib.import_module(package).__file__)
+        for folder, dirs, files in os.walk(root):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__" and not (package == "cbtc" and folder == root
+                                                                               and d in ("firmware", "track_layouts")))
+            for name in sorted(f for f in files if f.endswith((".py", ".yaml"))):
+                path = os.path.join(folder, name)
+                digest.update(f"{package}/{os.path.relpath(path, root)}\n".encode())
+                with open(path, "rb") as fh:
+                    digest.update(fh.read())
+    return digest.hexdigest()[:16]
 
 
 def tables(specs, records: dict) -> dict:

@@ -6,30 +6,36 @@ import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from cbtc.errors import ConfigError
-from cbtc.experiments.campaign import run_one
+from cbtc.experiments.campaign import code_fingerprint, run_one
 
 
 class ResultsFile:
-    """The finished runs of a campaign, one JSON line each, keyed by their `cbtc sim` command."""
+    """The finished runs of a campaign, one JSON line each, keyed by their `cbtc sim` command. Only runs made by this
+    code (campaign.code_fingerprint) are reused; `other_code` counts the others, which are made again."""
 
     def __init__(self, path: str):
         self.path = path
         self.records = {}
         self.unreadable = 0   # lines that are no record (a line cut short when a campaign was killed): run again
+        self.other_code = 0
         directory = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(directory):
             raise ConfigError(f"--results {path}: directory {directory} does not exist; create it or give another")
         if os.path.isdir(path):
             raise ConfigError(f"--results {path} is a directory; give a file name")
         self._cut_short = False   # the file ends inside a line: the next record starts on a line of its own
+        code = code_fingerprint()
         if os.path.exists(path):
             with open(path) as fh:
                 for line in fh:
                     self._cut_short = not line.endswith("\n")
                     try:
                         record = json.loads(line)
+                        if record.get("code") != code:
+                            self.other_code += 1
+                            continue
                         self.records[record["command"]] = record
-                    except (ValueError, KeyError, TypeError):
+                    except (ValueError, KeyError, TypeError, AttributeError):
                         self.unreadable += bool(line.strip())
 
     def add(self, record: dict) -> None:
