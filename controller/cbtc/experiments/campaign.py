@@ -136,10 +136,15 @@ def run_one(spec: RunSpec) -> dict:
     from cbtc.sim.runs import sim_config
     from cbtc.sim.simulation import Simulation
 
-    logging.getLogger("cbtc").setLevel(logging.ERROR)   # the figures count what the zone would log
+    logger = logging.getLogger("cbtc")
+    level = logger.level
+    logger.setLevel(logging.ERROR)   # the figures count what the zone would log; the caller's level comes back after
     started = time.perf_counter()
-    config = sim_config(spec.layout, spec.trains, spec.seed, spec.duration_s, fault_texts=spec.faults)
-    summary = Simulation(config).run().summary()
+    try:
+        config = sim_config(spec.layout, spec.trains, spec.seed, spec.duration_s, fault_texts=spec.faults)
+        summary = Simulation(config).run().summary()
+    finally:
+        logger.setLevel(level)
     keep = ("collisions", "authority_overruns", "granted_beyond_m", "emergency_trips", "encoder_trips", "stranded",
             "mean_following_gap_m", "min_gap_m", "mean_lap_s", "simulated_s")
     return {"command": spec.command(), "spec": asdict(spec), "summary": {k: summary[k] for k in keep},
