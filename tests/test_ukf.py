@@ -408,3 +408,43 @@ def test_fusion_command_reproduces_the_papers_ordering(capsys):
 def test_fusion_command_names_bad_input(capsys):
     assert main(["fusion", "--ips-sigma", "-1"]) == 2
     assert "--ips-sigma" in capsys.readouterr().err
+
+
+def test_filter_steps_equal_filterpy_reference():
+    """TrackUkf's own sigma points and predict give filterpy's MerweScaledSigmaPoints and UnscentedKalmanFilter
+    results (to 1e-12) on the same inputs: a predict, then an odometer and an IPS update."""
+    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+    from cbtc.estimation.track_ukf import _ALPHA, _BETA, _KAPPA, _SigmaPoints, fx, hx_ips, hx_odometer
+
+    layout = load_layout("itb_square")
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        A = rng.normal(size=(4, 4))
+        P0 = A @ A.T * 1e-3 + np.eye(4) * 1e-4
+        x0 = [rng.uniform(0.5, layout.length_m - 0.5), rng.uniform(0, 0.6), rng.uniform(0, 5), rng.normal(0, 0.02)]
+        ours = _SigmaPoints(4, _ALPHA, _BETA, _KAPPA).sigma_points(x0, P0)
+        theirs = MerweScaledSigmaPoints(4, _ALPHA, _BETA, _KAPPA).sigma_points(x0, P0)
+        assert np.allclose(ours, theirs, rtol=0, atol=1e-12)
+
+        noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.05, 0.999)
+        f = TrackUkf(layout, noise, x0, P0, 0.0)
+        ref = UnscentedKalmanFilter(dim_x=4, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx,
+                                    points=MerweScaledSigmaPoints(4, _ALPHA, _BETA, _KAPPA))
+        ref.x, ref.P = np.array(x0, dtype=float), P0.copy()
+        ref.Q = process_noise(4, 0.1, x0[1], x0[3], noise)
+        ref.predict(dt=0.1)
+        f.predict_to(0.1)
+        assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)
+        ref.P = 0.5 * (ref.P + ref.P.T)
+        ref.sigmas_f = ref.points_fn.sigma_points(ref.x, ref.P)
+        ref.update(np.array([x0[2] + 0.01]), R=np.array([[noise.odo_var_m2]]), hx=hx_odometer)
+        f.update_odometer(x0[2] + 0.01)
+        assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)
+        px, py = hx_ips(f.x, layout)
+        ref.P = 0.5 * (ref.P + ref.P.T)
+        ref.x[0] = layout.wrap(ref.x[0])
+        ref.sigmas_f = ref.points_fn.sigma_points(ref.x, ref.P)
+        ref.update(np.array([px + 0.01, py - 0.01]), R=np.eye(2) * noise.ips_var_m2, hx=hx_ips, layout=layout)
+        assert f.update_ips(px + 0.01, py - 0.01)
+        assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)

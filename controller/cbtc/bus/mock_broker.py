@@ -16,6 +16,9 @@ from dataclasses import dataclass
 from cbtc.bus.client import BusClient, topic_matches, validate_filter, validate_topic
 from cbtc.errors import BusError
 
+# (filter, topic) -> match: a simulation uses a few dozen topics and filters, each matched at every message
+_matches = functools.lru_cache(maxsize=8192)(topic_matches)
+
 KEEPALIVE_GRACE = 1.5  # MQTT: the broker declares a client dead after 1.5 keep-alive periods of silence
 
 
@@ -259,7 +262,7 @@ class MockBroker:
                 self._retained.pop(topic, None)
             self.stats["retained"] = len(self._retained)
         for client in list(self._clients.values()):
-            if client._connected and any(topic_matches(f, topic) for f in client._subs):
+            if client._connected and any(_matches(f, topic) for f in client._subs):
                 self._to_client(client, topic, payload)
 
     def _to_client(self, client, topic, payload):
@@ -281,7 +284,7 @@ class MockBroker:
             return
         callbacks = []
         for topic_filter, callback in client._subs.items():
-            if topic_matches(topic_filter, topic) and callback not in callbacks:
+            if _matches(topic_filter, topic) and callback not in callbacks:
                 callbacks.append(callback)
         if not callbacks:
             return

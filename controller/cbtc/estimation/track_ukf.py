@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter, unscented_transform
 from scipy.stats import chi2
 
 from cbtc.railway.geometry import circular_offset_m
@@ -113,6 +113,59 @@ def along_track_residual(layout):
     return residual
 
 
+class _SigmaPoints(MerweScaledSigmaPoints):
+    """Merwe's scaled sigma points built in one numpy step from numpy's Cholesky factor: the points filterpy's loop
+    gives (x, then x + and x - each row of the factor), at a fraction of the cost for a state of 3 or 4."""
+
+    def sigma_points(self, x, P):
+        n = self.n
+        lambda_ = self.alpha ** 2 * (n + self.kappa) - n
+        U = np.linalg.cholesky((lambda_ + n) * np.asarray(P, dtype=float)).T
+        x = np.asarray(x, dtype=float)
+        return np.vstack((x, x + U, x - U))
+
+
+class _Ukf(UnscentedKalmanFilter):
+    """filterpy's filter with its algebra done on whole arrays: `fx` on all sigma points at once, the cross variance
+    as one product, no closing redraw of the points in `predict` (TrackUkf draws them when an update needs them,
+    after it has settled the state). The same steps as filterpy's (a test holds them equal to 1e-12)."""
+
+    def predict(self, dt=None, UT=None, fx=None, **fx_args):
+        sigmas = self.points_fn.sigma_points(self.x, self.P)
+        self.sigmas_f = fx_all(sigmas, self._dt if dt is None else dt)
+        self.x, self.P = unscented_transform(self.sigmas_f, self.Wm, self.Wc, self.Q, self.x_mean, self.residual_x)
+
+    def update(self, z, R=None, UT=None, hx=None, **hx_args):
+        hx = self.hx if hx is None else hx
+        R = self.R if R is None else R
+        sigmas_h = np.atleast_2d([hx(s, **hx_args) for s in self.sigmas_f])
+        self.sigmas_h = sigmas_h
+        zp, self.S = unscented_transform(sigmas_h, self.Wm, self.Wc, R, self.z_mean, self.residual_z)
+        self.SI = self.inv(self.S)
+        dx = self.sigmas_f - self.x   # the state residual is a plain difference: s is wrapped after each step
+        if self.residual_z is np.subtract:
+            dz = sigmas_h - zp
+        else:
+            dz = np.array([self.residual_z(h, zp) for h in sigmas_h])
+        Pxz = (self.Wc[:, np.newaxis] * dx).T @ dz
+        self.K = Pxz @ self.SI
+        self.y = self.residual_z(z, zp)
+        self.x = self.x + self.K @ self.y
+        self.P = self.P - self.K @ (self.S @ self.K.T)
+        self.z = np.array(z, dtype=float)
+        self._log_likelihood = self._likelihood = self._mahalanobis = None
+
+
+def fx_all(sigmas, dt_s):
+    """`fx` for every row of `sigmas` (a 2-D array of states) in one step."""
+    out = np.array(sigmas, dtype=float)
+    v = sigmas[:, V]
+    out[:, S] = sigmas[:, S] + v * dt_s
+    c = 1.0 + sigmas[:, K] if sigmas.shape[1] > K else 1.0
+    out[:, D] = sigmas[:, D] + c * v * dt_s
+    return out
+
+
 def initial_covariance(n, sigma_s_m, sigma_v_mps, sigma_d_m, sigma_k):
     """Diagonal P0 for a state of dimension `n` (3 without the scale error, 4 with it)."""
     return np.diag([sigma_s_m ** 2, sigma_v_mps ** 2, sigma_d_m ** 2, sigma_k ** 2][:n])
@@ -130,11 +183,12 @@ class TrackUkf:
         self.layout = layout
         self.noise = noise
         n = len(x0)
-        points = MerweScaledSigmaPoints(n, alpha=_ALPHA, beta=_BETA, kappa=_KAPPA)
-        self.ukf = UnscentedKalmanFilter(dim_x=n, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx, points=points)
+        points = _SigmaPoints(n, alpha=_ALPHA, beta=_BETA, kappa=_KAPPA)
+        self.ukf = _Ukf(dim_x=n, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx, points=points)
         self.ukf.x = np.array(x0, dtype=float)
         self.ukf.P = np.array(P0, dtype=float)
         self.t_s = float(t_s)
+        self._points_stale = True   # sigmas_f no longer drawn from (x, P): drawn afresh before the next update
         self._along = along_track_residual(layout)
         self._gate1 = math.sqrt(chi2.ppf(noise.gate_prob, 1))
         self._gate2 = math.sqrt(chi2.ppf(noise.gate_prob, 2))
@@ -158,6 +212,7 @@ class TrackUkf:
         self.t_s, x, P = snap
         self.ukf.x = x.copy()
         self.ukf.P = P.copy()
+        self._points_stale = True
 
     def predict_to(self, t_s: float) -> None:
         """Advance to time `t_s` (s) with the real dt; a later call with the same time is a no-op in mean and P."""
@@ -171,6 +226,7 @@ class TrackUkf:
 
     def update_odometer(self, d_m: float) -> bool:
         """Fold in the encoder odometer (m) at the current time. Never gated: the encoder is the backbone."""
+        self._draw_points()
         self.ukf.residual_z = np.subtract
         self.ukf.update(np.array([d_m]), R=np.array([[self.noise.odo_var_m2]]), hx=hx_odometer)
         self._settle()
@@ -212,18 +268,24 @@ class TrackUkf:
         self._settle()
 
     def _gated_update(self, z, R, gate, hx, **hx_args) -> bool:
+        self._draw_points()
         x_before, P_before = self.ukf.x.copy(), self.ukf.P.copy()
         self.ukf.update(z, R=R, hx=hx, **hx_args)
         if self.ukf.mahalanobis > gate:
             self.ukf.x, self.ukf.P = x_before, P_before
-            return False
+            return False   # (x, P) as before: the points drawn from them still hold
         self._settle()
         return True
 
     def _settle(self):
-        """Keep P symmetric, s on the layout, and the sigma points in step with (x, P) for a following update."""
+        """Keep P symmetric and s on the layout; the sigma points are drawn from them when an update needs them."""
         ukf = self.ukf
         ukf.P = 0.5 * (ukf.P + ukf.P.T)
         if self.layout.closed:
             ukf.x[S] = self.layout.wrap(ukf.x[S])
-        ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
+        self._points_stale = True
+
+    def _draw_points(self):
+        if self._points_stale:
+            self.ukf.sigmas_f = self.ukf.points_fn.sigma_points(self.ukf.x, self.ukf.P)
+            self._points_stale = False

@@ -138,6 +138,8 @@ class UkfEstimator:
         self.late_measurements = 0   # arrived more than history_s after newer ones: dropped
         self._clock = None
         self._events = []            # in time order
+        self._keys = []              # _keys[i]: _events[i].sort_key, for bisect
+        self._estimate_memo = None   # (state, now_s, clock offset, newest data time, Estimate): asked many times
         self._states = []            # _states[i]: after _events[i]; None while unlocated
         self._base = None            # state before _events[0]
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
@@ -224,7 +226,7 @@ class UkfEstimator:
         self._insert([_Event(t_s, "range", (float(radio_xy[0]), float(radio_xy[1]), float(range_m), float(sigma_m)))])
 
     def _insert(self, new):
-        keys = [e.sort_key for e in self._events]
+        keys = self._keys
         start = len(self._events)
         for event in sorted(new, key=lambda e: e.sort_key):
             if self._trimmed and event.t_s < self._events[0].t_s:
@@ -256,6 +258,7 @@ class UkfEstimator:
             self._base = self._states[drop - 1]
             self._trimmed = True
             del self._events[:drop]
+            del self._keys[:drop]
             del self._states[:drop]
 
     def _apply(self, state, event):
@@ -373,13 +376,20 @@ class UkfEstimator:
         state = self._newest
         if state is None or self._clock is None:
             return None
-        t_s, x, P = state.snap
         offset_s = self._clock.offset_s
+        newest_t_s = self._events[-1].t_s
+        memo = self._estimate_memo
+        if memo is not None and memo[0] is state and memo[1] == now_s and memo[2] == offset_s \
+                and memo[3] == newest_t_s:
+            return memo[4]
+        t_s, x, P = state.snap
         dt_s = (now_s - offset_s) - t_s
         q = self.noise.accel_psd_m2ps3
         adt = abs(dt_s)
         var_s = P[S, S] + 2.0 * dt_s * P[S, V] + dt_s * dt_s * P[V, V] + q * adt ** 3 / 3.0
         var_v = P[V, V] + q * adt
-        return Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
-                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
-                        data_t_s=self._events[-1].t_s + offset_s)
+        est = Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
+                       sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
+                       data_t_s=newest_t_s + offset_s)
+        self._estimate_memo = (state, now_s, offset_s, newest_t_s, est)
+        return est
