@@ -40,6 +40,26 @@ class LinkProfile:
                              "and duplicate in [0, 1]")
 
 
+class _Subscriptions(dict):
+    """A client's filter -> callback, telling the broker of every change: it keeps the clients of each topic."""
+
+    def __init__(self, broker):
+        super().__init__()
+        self._broker = broker
+
+    def __setitem__(self, topic_filter, callback):
+        super().__setitem__(topic_filter, callback)
+        self._broker._routes.clear()
+
+    def pop(self, *args):
+        self._broker._routes.clear()
+        return super().pop(*args)
+
+    def clear(self):
+        self._broker._routes.clear()
+        super().clear()
+
+
 class MockClient(BusClient):
     """One connection to a `MockBroker`; made by `MockBroker.connect`, implements `cbtc.bus.client.BusClient`."""
 
@@ -51,7 +71,7 @@ class MockClient(BusClient):
         self.down = down or LinkProfile()
         self.keepalive_s = keepalive_s
         self.on_connect = None        # callable(client), run after reconnect(): resubscribe there
-        self._subs = {}               # filter -> callback
+        self._subs = _Subscriptions(broker)   # filter -> callback
         self._connected = False
         self._conn = 0                # bumped on every (re)connect: deliveries for an older connection are dropped
         self._cuts = 0                # bumped on every abrupt loss: messages still on the uplink are dropped
@@ -106,6 +126,7 @@ class MockBroker:
         self.scheduler = scheduler
         self._rng = random.Random(seed)
         self._clients = {}
+        self._routes = {}    # topic -> the clients subscribed to it, in connection order; cleared on any change
         self._retained = {}
         self.running = True
         self.last_error = ""
@@ -141,6 +162,7 @@ class MockBroker:
         client._subs.clear()
         client._conn += 1
         self._clients[client.client_id] = client
+        self._routes.clear()
         if client.keepalive_s is not None:
             self._heard(client, client._cuts)
             tick = functools.partial(self._ping, client, client._conn)
@@ -261,8 +283,12 @@ class MockBroker:
             else:
                 self._retained.pop(topic, None)
             self.stats["retained"] = len(self._retained)
-        for client in list(self._clients.values()):
-            if client._connected and any(_matches(f, topic) for f in client._subs):
+        clients = self._routes.get(topic)
+        if clients is None:
+            clients = self._routes[topic] = [client for client in self._clients.values()
+                                             if any(_matches(f, topic) for f in client._subs)]
+        for client in clients:
+            if client._connected:
                 self._to_client(client, topic, payload)
 
     def _to_client(self, client, topic, payload):

@@ -225,10 +225,14 @@ class TrackUkf:
         self._settle()
 
     def update_odometer(self, d_m: float) -> bool:
-        """Fold in the encoder odometer (m) at the current time. Never gated: the encoder is the backbone."""
-        self._draw_points()
-        self.ukf.residual_z = np.subtract
-        self.ukf.update(np.array([d_m]), R=np.array([[self.noise.odo_var_m2]]), hx=hx_odometer)
+        """Fold in the encoder odometer (m) at the current time. Never gated: the encoder is the backbone. The
+        odometer is a state, so the unscented update is exactly the Kalman update, done here in closed form."""
+        ukf = self.ukf
+        P = ukf.P
+        S_m2 = P[D, D] + self.noise.odo_var_m2
+        gain = P[:, D] / S_m2
+        ukf.x = ukf.x + gain * (d_m - ukf.x[D])
+        ukf.P = P - np.outer(gain, gain) * S_m2
         self._settle()
         return True
 
