@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter, unscented_transform
+from scipy.linalg.lapack import dpotrf
 from scipy.stats import chi2
 
 from cbtc.railway.geometry import circular_offset_m
@@ -114,15 +115,30 @@ def along_track_residual(layout):
 
 
 class _SigmaPoints(MerweScaledSigmaPoints):
-    """Merwe's scaled sigma points built in one numpy step from numpy's Cholesky factor: the points filterpy's loop
-    gives (x, then x + and x - each row of the factor), at a fraction of the cost for a state of 3 or 4."""
+    """Merwe's scaled sigma points built in one numpy step from LAPACK's Cholesky factor (the routine behind scipy's
+    `cholesky`, called without its wrapper): the points filterpy's loop gives (x, then x + and x - each row of the
+    factor), at a fraction of the cost for a state of 3 or 4."""
 
     def sigma_points(self, x, P):
         n = self.n
         lambda_ = self.alpha ** 2 * (n + self.kappa) - n
-        U = np.linalg.cholesky((lambda_ + n) * np.asarray(P, dtype=float)).T
+        U, info = dpotrf((lambda_ + n) * np.asarray(P, dtype=float), lower=0, clean=1)
+        if info or not np.isfinite(U).all():
+            raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
         x = np.asarray(x, dtype=float)
-        return np.vstack((x, x + U, x - U))
+        sigmas = np.empty((2 * n + 1, n))
+        sigmas[0] = x
+        np.add(x, U, out=sigmas[1:n + 1])
+        np.subtract(x, U, out=sigmas[n + 1:])
+        return sigmas
+
+
+def _transform(sigmas, Wm, Wc, noise_cov):
+    """filterpy's unscented_transform for plain differences: the weighted mean and covariance of the sigma points,
+    plus the noise."""
+    x = np.dot(Wm, sigmas)
+    y = sigmas - x
+    return x, (y.T * Wc) @ y + noise_cov
 
 
 class _Ukf(UnscentedKalmanFilter):
@@ -133,14 +149,17 @@ class _Ukf(UnscentedKalmanFilter):
     def predict(self, dt=None, UT=None, fx=None, **fx_args):
         sigmas = self.points_fn.sigma_points(self.x, self.P)
         self.sigmas_f = fx_all(sigmas, self._dt if dt is None else dt)
-        self.x, self.P = unscented_transform(self.sigmas_f, self.Wm, self.Wc, self.Q, self.x_mean, self.residual_x)
+        self.x, self.P = _transform(self.sigmas_f, self.Wm, self.Wc, self.Q)
 
     def update(self, z, R=None, UT=None, hx=None, **hx_args):
         hx = self.hx if hx is None else hx
         R = self.R if R is None else R
         sigmas_h = np.atleast_2d([hx(s, **hx_args) for s in self.sigmas_f])
         self.sigmas_h = sigmas_h
-        zp, self.S = unscented_transform(sigmas_h, self.Wm, self.Wc, R, self.z_mean, self.residual_z)
+        if self.residual_z is np.subtract:
+            zp, self.S = _transform(sigmas_h, self.Wm, self.Wc, R)
+        else:
+            zp, self.S = unscented_transform(sigmas_h, self.Wm, self.Wc, R, self.z_mean, self.residual_z)
         self.SI = self.inv(self.S)
         dx = self.sigmas_f - self.x   # the state residual is a plain difference: s is wrapped after each step
         if self.residual_z is np.subtract:
