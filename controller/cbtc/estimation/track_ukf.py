@@ -154,7 +154,11 @@ class _Ukf(UnscentedKalmanFilter):
     def update(self, z, R=None, UT=None, hx=None, **hx_args):
         hx = self.hx if hx is None else hx
         R = self.R if R is None else R
-        sigmas_h = np.atleast_2d([hx(s, **hx_args) for s in self.sigmas_f])
+        rows = _ALL_ROWS.get(hx)
+        if rows is not None:
+            sigmas_h = rows(self.sigmas_f, **hx_args)
+        else:
+            sigmas_h = np.atleast_2d([hx(s, **hx_args) for s in self.sigmas_f])
         self.sigmas_h = sigmas_h
         if self.residual_z is np.subtract:
             zp, self.S = _transform(sigmas_h, self.Wm, self.Wc, R)
@@ -173,6 +177,18 @@ class _Ukf(UnscentedKalmanFilter):
         self.P = self.P - self.K @ (self.S @ self.K.T)
         self.z = np.array(z, dtype=float)
         self._log_likelihood = self._likelihood = self._mahalanobis = None
+
+
+def _hx_ips_rows(sigmas, layout):
+    return layout.xy(sigmas[:, S])
+
+
+def _hx_tag_rows(sigmas, rfid_offset_m):
+    return np.stack((sigmas[:, S] + rfid_offset_m, sigmas[:, D]), axis=-1)
+
+
+# hx -> the same measurement of every sigma point (rows of a 2-D array) in one step
+_ALL_ROWS = {hx_ips: _hx_ips_rows, hx_tag: _hx_tag_rows}
 
 
 def fx_all(sigmas, dt_s):

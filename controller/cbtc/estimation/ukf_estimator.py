@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
+from scipy.linalg.lapack import dpotrf
 
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate
@@ -188,11 +189,7 @@ class UkfEstimator:
         _t, x, P = state.snap
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
             return False
-        try:
-            np.linalg.cholesky(P)
-        except np.linalg.LinAlgError:
-            return False
-        return True
+        return dpotrf(P, lower=0, clean=0)[1] == 0   # LAPACK's Cholesky succeeds (the values were finite)
 
     def counters(self) -> dict:
         """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""

@@ -40,19 +40,31 @@ class Recorder:
         self.room_m = [math.inf] * n             # true room ahead at the newest sample
         self._colliding = [False] * n
         self._overrun = [False] * n
-        self.reports = [[] for _ in range(n)]     # (recv_s, report dict)
+        self._heard = [[] for _ in range(n)]      # (recv_s, topic, payload) of every report heard: decoded when asked
+        self._reports = [[] for _ in range(n)]    # (recv_s, report dict) of those decoded so far
         self._index = {t.train_id: i for i, t in enumerate(sim.trains)}
         self._sniffer = sim.broker.connect("recorder")
         self._sniffer.subscribe(wire.REPORT_FILTER, self._on_report)
 
     def _on_report(self, topic, payload):
         try:
-            train_id = wire.train_id_of(topic)
-            i = self._index[train_id]
-            report = wire.decode_report(train_key(self.sim.config.seed, train_id), topic, payload)
+            i = self._index[wire.train_id_of(topic)]
         except (wire.WireError, KeyError):
             return
-        self.reports[i].append((self.sim.scheduler.now_s(), report))
+        self._heard[i].append((self.sim.scheduler.now_s(), topic, payload))
+
+    @property
+    def reports(self):
+        """Per train, (recv_s, report dict) of every authentic report heard, in arrival order."""
+        for i, heard in enumerate(self._heard):
+            key = train_key(self.sim.config.seed, self.sim.trains[i].train_id)
+            for recv_s, topic, payload in heard:
+                try:
+                    self._reports[i].append((recv_s, wire.decode_report(key, topic, payload)))
+                except wire.WireError:
+                    pass
+            heard.clear()
+        return self._reports
 
     def sample(self, now_s):
         layout = self.layout
