@@ -119,6 +119,8 @@ class SimRfid:
         self._rng = rng
         self._inside = {}   # uid -> True once this passage was decided (read or missed)
         self._images = {tag.uid: balise.image(i + 1, tag.s_m) for i, tag in enumerate(layout.tags)}
+        self._tag_s_m = np.array([tag.s_m for tag in layout.tags], dtype=float)
+        self._tag_index = {tag.uid: i for i, tag in enumerate(layout.tags)}
         self.present = True
         self.wrong_tag = 0.0    # fault injection: share of reads that return another tag of the layout
         self.data = None
@@ -132,10 +134,14 @@ class SimRfid:
         self.data = None
         if not self.present:
             return None
-        for tag in self._layout.tags:
-            near = abs(self._layout.ahead_m(tag.s_m, self._s_m)) <= self._profile.rfid_range_m or \
-                abs(self._layout.ahead_m(self._s_m, tag.s_m)) <= self._profile.rfid_range_m
-            if not near:
+        tags = self._layout.tags
+        near_all = self._near()
+        # in the layout's order: the tags in range, and those left since the last poll (forgotten below)
+        seen = set(np.flatnonzero(near_all).tolist())
+        seen.update(self._tag_index[uid] for uid in self._inside)
+        for i in sorted(seen):
+            tag = tags[i]
+            if not near_all[i]:
                 self._inside.pop(tag.uid, None)
                 continue
             if tag.uid in self._inside:
@@ -148,6 +154,16 @@ class SimRfid:
                 self.data = self._read(self._images[tag.uid])
                 return tag.uid
         return None
+
+    def _near(self):
+        """Per tag of the layout, True when the head is within reading range of it (either way round a loop)."""
+        loop_m = self._layout.loop_length_m
+        behind = self._s_m - self._tag_s_m
+        ahead = self._tag_s_m - self._s_m
+        if loop_m:
+            behind, ahead = np.mod(behind, loop_m), np.mod(ahead, loop_m)
+        range_m = self._profile.rfid_range_m
+        return (np.abs(behind) <= range_m) | (np.abs(ahead) <= range_m)
 
     def _read(self, image):
         flips = self._rng.random(len(image) * 8) < self._profile.rfid_bit_error
