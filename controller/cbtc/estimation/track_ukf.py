@@ -162,14 +162,12 @@ class _Ukf(UnscentedKalmanFilter):
         self.sigmas_h = sigmas_h
         if self.residual_z is np.subtract:
             zp, self.S = _transform(sigmas_h, self.Wm, self.Wc, R)
-        else:
-            zp, self.S = unscented_transform(sigmas_h, self.Wm, self.Wc, R, self.z_mean, self.residual_z)
-        self.SI = self.inv(self.S)
-        dx = self.sigmas_f - self.x   # the state residual is a plain difference: s is wrapped after each step
-        if self.residual_z is np.subtract:
             dz = sigmas_h - zp
         else:
+            zp, self.S = unscented_transform(sigmas_h, self.Wm, self.Wc, R, self.z_mean, self.residual_z)
             dz = np.array([self.residual_z(h, zp) for h in sigmas_h])
+        self.SI = self.inv(self.S)
+        dx = self.sigmas_f - self.x   # the state residual is a plain difference: s is wrapped after each step
         Pxz = (self.Wc[:, np.newaxis] * dx).T @ dz
         self.K = Pxz @ self.SI
         self.y = self.residual_z(z, zp)

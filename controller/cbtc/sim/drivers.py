@@ -157,13 +157,9 @@ class SimRfid:
 
     def _near(self):
         """Per tag of the layout, True when the head is within reading range of it (either way round a loop)."""
-        loop_m = self._layout.loop_length_m
-        behind = self._s_m - self._tag_s_m
-        ahead = self._tag_s_m - self._s_m
-        if loop_m:
-            behind, ahead = np.mod(behind, loop_m), np.mod(ahead, loop_m)
         range_m = self._profile.rfid_range_m
-        return (np.abs(behind) <= range_m) | (np.abs(ahead) <= range_m)
+        return (np.abs(self._layout.ahead_m(self._tag_s_m, self._s_m)) <= range_m) | \
+            (np.abs(self._layout.ahead_m(self._s_m, self._tag_s_m)) <= range_m)
 
     def _read(self, image):
         flips = self._rng.random(len(image) * 8) < self._profile.rfid_bit_error
