@@ -38,6 +38,24 @@ MAX_PAYLOAD = const(1024)     # longest payload accepted (bytes); the board's li
 _ID_MAX_LEN = const(16)       # longest train id (characters)
 
 
+try:
+    from hmac import compare_digest as _same_mac  # CPython: the constant-time comparison, in C
+except ImportError:   # MicroPython has no hmac module
+    def _same_mac(a, b):
+        """a == b (bytes) in time that depends on their lengths only."""
+        diff = len(a) ^ len(b)
+        if not diff:
+            for i in range(len(a)):
+                diff |= a[i] ^ b[i]
+        return not diff
+
+try:
+    dumps_compact = json.JSONEncoder(separators=(",", ":")).encode   # CPython: one encoder, not one per message
+except AttributeError:   # MicroPython's json
+    def dumps_compact(msg):
+        return json.dumps(msg, separators=(",", ":"))
+
+
 class WireError(ValueError):
     """A message that must be ignored; `reason` says why in words a log reader can act on."""
 
@@ -137,7 +155,7 @@ def check_ints(values, specs, topic, field=None):
     for i in range(0, len(specs), 3):
         name = specs[i]
         value = values.get(name) if field is None else values[i // 3]
-        if not isinstance(value, int) or isinstance(value, bool) or not specs[i + 1] <= value <= specs[i + 2]:
+        if type(value) is not int or not specs[i + 1] <= value <= specs[i + 2]:   # a bool is not an integer here
             raise WireError("field %r on %s must be an integer in [%d, %d], got %r"   # a list item: ('ips', 'x_mm')
                             % (name if field is None else (field, name), topic, specs[i + 1], specs[i + 2], value))
 
@@ -156,12 +174,7 @@ def decode_sealed(key, topic, payload, kind, specs):
     if cut < 0:
         raise WireError("payload on %s has no '#<mac>' authentication suffix" % topic)
     body = payload[:cut]
-    sealed = seal(key, topic, body)
-    diff = len(sealed) ^ len(payload)   # constant-time comparison of the received MAC with ours
-    if not diff:
-        for i in range(cut, len(sealed)):
-            diff |= sealed[i] ^ payload[i]
-    if diff:
+    if not _same_mac(seal(key, topic, body), payload):
         raise WireError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     try:
         msg = json.loads(body)
@@ -204,7 +217,7 @@ def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode
            "flt": faults}
     if rng is not None:
         msg["rng"] = rng   # absent (read as null) on boards without ranging
-    return seal(key, topic_report(train_id), json.dumps(msg, separators=(",", ":")).encode())
+    return seal(key, topic_report(train_id), dumps_compact(msg).encode())
 
 
 # --- commands --------------------------------------------------------------------------------------------------

@@ -5,7 +5,6 @@ Part of the one protocol definition, in a module of its own because a board neve
 names on first use (`wire.decode_report`, `wire.MODES`), so a board never loads this module into its small heap.
 """
 
-import json
 
 try:
     from . import wire  # the controller imports the firmware as the package cbtc.firmware
@@ -15,7 +14,7 @@ except ImportError:
 BOOT_MAX, INT31, MAX_TAGS, VERSION, WireError = wire.BOOT_MAX, wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
 WRAP_MASK = wire.WRAP_MASK
 check_fields, check_ints, decode_sealed = wire.check_fields, wire.check_ints, wire.decode_sealed
-seal, topic_command = wire.seal, wire.topic_command
+dumps_compact, seal, topic_command = wire.dumps_compact, wire.seal, wire.topic_command
 
 try:
     from micropython import const
@@ -125,4 +124,4 @@ def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 
            "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
            "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms,
            "odo_mm_per_m": odo_mm_per_m}
-    return seal(key, topic_command(train_id), json.dumps(msg, separators=(",", ":")).encode())
+    return seal(key, topic_command(train_id), dumps_compact(msg).encode())

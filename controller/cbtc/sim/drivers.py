@@ -6,6 +6,7 @@ and misreads bits of their telegrams.
 Randomness comes from the numpy Generator handed in, so a seed reproduces a run.
 """
 
+import bisect
 import math
 
 import numpy as np
@@ -119,7 +120,7 @@ class SimRfid:
         self._rng = rng
         self._inside = {}   # uid -> True once this passage was decided (read or missed)
         self._images = {tag.uid: balise.image(i + 1, tag.s_m) for i, tag in enumerate(layout.tags)}
-        self._tag_s_m = np.array([tag.s_m for tag in layout.tags], dtype=float)
+        self._tag_s_m = [tag.s_m for tag in layout.tags]   # sorted, as the layout keeps its tags
         self._tag_index = {tag.uid: i for i, tag in enumerate(layout.tags)}
         self.present = True
         self.wrong_tag = 0.0    # fault injection: share of reads that return another tag of the layout
@@ -135,13 +136,15 @@ class SimRfid:
         if not self.present:
             return None
         tags = self._layout.tags
-        near_all = self._near()
+        near = self._near()
+        if not near and not self._inside:
+            return None
         # in the layout's order: the tags in range, and those left since the last poll (forgotten below)
-        seen = set(np.flatnonzero(near_all).tolist())
+        seen = set(near)
         seen.update(self._tag_index[uid] for uid in self._inside)
         for i in sorted(seen):
             tag = tags[i]
-            if not near_all[i]:
+            if i not in near:
                 self._inside.pop(tag.uid, None)
                 continue
             if tag.uid in self._inside:
@@ -156,10 +159,24 @@ class SimRfid:
         return None
 
     def _near(self):
-        """Per tag of the layout, True when the head is within reading range of it (either way round a loop)."""
+        """Indices of the layout's tags (sorted by position) within reading range of the head, either way round a
+        loop: the candidates found by bisection, then each tested exactly."""
         range_m = self._profile.rfid_range_m
-        return (np.abs(self._layout.ahead_m(self._tag_s_m, self._s_m)) <= range_m) | \
-            (np.abs(self._layout.ahead_m(self._s_m, self._tag_s_m)) <= range_m)
+        s_m = self._s_m
+        ahead_m = self._layout.ahead_m
+        positions = self._tag_s_m
+        windows = [(s_m - range_m, s_m + range_m)]
+        length_m = self._layout.loop_length_m
+        if length_m:
+            windows += [(s_m - range_m - length_m, s_m + range_m - length_m),
+                        (s_m - range_m + length_m, s_m + range_m + length_m)]
+        near = set()
+        for low, high in windows:
+            for i in range(bisect.bisect_left(positions, low - 1e-9), bisect.bisect_right(positions, high + 1e-9)):
+                tag_s_m = positions[i]
+                if abs(ahead_m(tag_s_m, s_m)) <= range_m or abs(ahead_m(s_m, tag_s_m)) <= range_m:
+                    near.add(i)
+        return near
 
     def _read(self, image):
         flips = self._rng.random(len(image) * 8) < self._profile.rfid_bit_error
