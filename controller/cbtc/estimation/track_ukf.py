@@ -119,18 +119,18 @@ class _SigmaPoints(MerweScaledSigmaPoints):
     `cholesky`, called without its wrapper): the points filterpy's loop gives (x, then x + and x - each row of the
     factor), at a fraction of the cost for a state of 3 or 4."""
 
-    def sigma_points(self, x, P):
-        n = self.n
-        lambda_ = self.alpha ** 2 * (n + self.kappa) - n
-        U, info = dpotrf((lambda_ + n) * np.asarray(P, dtype=float), lower=0, clean=1)
-        if info or not np.isfinite(U).all():
+    def factor(self, P):
+        """The upper Cholesky factor of (lambda + n) P: its row j is sigma point j's offset from the mean."""
+        lambda_ = self.alpha ** 2 * (self.n + self.kappa) - self.n
+        U, info = dpotrf((lambda_ + self.n) * np.asarray(P, dtype=float), lower=0, clean=1)
+        if info or not math.isfinite(U.sum()):
             raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
+        return U
+
+    def sigma_points(self, x, P):
+        U = self.factor(P)
         x = np.asarray(x, dtype=float)
-        sigmas = np.empty((2 * n + 1, n))
-        sigmas[0] = x
-        np.add(x, U, out=sigmas[1:n + 1])
-        np.subtract(x, U, out=sigmas[n + 1:])
-        return sigmas
+        return np.concatenate((x[np.newaxis], x + U, x - U))
 
 
 def _transform(sigmas, Wm, Wc, noise_cov):
@@ -142,14 +142,40 @@ def _transform(sigmas, Wm, Wc, noise_cov):
 
 
 class _Ukf(UnscentedKalmanFilter):
-    """filterpy's filter with its algebra done on whole arrays: `fx` on all sigma points at once, the cross variance
-    as one product, no closing redraw of the points in `predict` (TrackUkf draws them when an update needs them,
-    after it has settled the state). The same steps as filterpy's (a test holds them equal to 1e-12)."""
+    """filterpy's filter with its algebra done on whole arrays: the predict of `fx` in closed form, the cross variance
+    as one product, no sigma points drawn in `predict` (TrackUkf draws them when an update needs them, after it has
+    settled the state). The same steps as filterpy's (a test holds them equal to 1e-12)."""
 
     def predict(self, dt=None, UT=None, fx=None, **fx_args):
-        sigmas = self.points_fn.sigma_points(self.x, self.P)
-        self.sigmas_f = fx_all(sigmas, self._dt if dt is None else dt)
-        self.x, self.P = _transform(self.sigmas_f, self.Wm, self.Wc, self.Q)
+        """filterpy's unscented predict of `fx`, summed in closed form. `fx` is linear, with Jacobian J, but for the
+        odometer's k * v dt; at the point x +- u_j (u_j: row j of the factor) that term is k v +- (k b_j + v a_j) +
+        a_j b_j with a_j, b_j the k and v entries of u_j. The weighted sums over the points give the mean
+        fx(x) + dt c (c = 2 W sum a_j b_j, the k-v covariance) and the covariance J P J^T + Q plus, on the odometer,
+        dt^2 (W_c0 c^2 + 2 W sum (a_j b_j - c)^2): the terms the points' spread adds to the linearisation."""
+        dt_s = self._dt if dt is None else dt
+        x = np.array(self.x, dtype=float)
+        P = self.P
+        n = len(x)
+        U = self.points_fn.factor(P)   # raises for a covariance with no sigma points, as drawing them would
+        J = np.eye(n)
+        J[S, V] = dt_s
+        if n > K:
+            k, v = x[K], x[V]
+            J[D, V] = (1.0 + k) * dt_s
+            J[D, K] = v * dt_s
+            ab = U[:, K] * U[:, V]
+            c = 2.0 * float(self.Wm[1]) * float(ab.sum())
+            dev = ab - c
+            spread = float(self.Wc[0]) * c * c + 2.0 * float(self.Wc[1]) * float(np.dot(dev, dev))
+        else:
+            k, v, c, spread = 0.0, x[V], 0.0, 0.0
+            J[D, V] = dt_s
+        x[S] += v * dt_s
+        x[D] += ((1.0 + k) * v + c) * dt_s
+        P = J @ P @ J.T + self.Q
+        P[D, D] += dt_s * dt_s * spread
+        self.x, self.P = x, P
+        self.sigmas_f = None   # drawn from (x, P) when an update needs them
 
     def update(self, z, R=None, UT=None, hx=None, **hx_args):
         hx = self.hx if hx is None else hx
@@ -187,16 +213,6 @@ def _hx_tag_rows(sigmas, rfid_offset_m):
 
 # hx -> the same measurement of every sigma point (rows of a 2-D array) in one step
 _ALL_ROWS = {hx_ips: _hx_ips_rows, hx_tag: _hx_tag_rows}
-
-
-def fx_all(sigmas, dt_s):
-    """`fx` for every row of `sigmas` (a 2-D array of states) in one step."""
-    out = np.array(sigmas, dtype=float)
-    v = sigmas[:, V]
-    out[:, S] = sigmas[:, S] + v * dt_s
-    c = 1.0 + sigmas[:, K] if sigmas.shape[1] > K else 1.0
-    out[:, D] = sigmas[:, D] + c * v * dt_s
-    return out
 
 
 def initial_covariance(n, sigma_s_m, sigma_v_mps, sigma_d_m, sigma_k):
