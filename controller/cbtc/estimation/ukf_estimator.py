@@ -187,7 +187,7 @@ class UkfEstimator:
         if state is None:
             return True
         _t, x, P = state.snap
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+        if not math.isfinite(float(x.sum()) + float(P.sum())):   # a NaN or an infinity anywhere
             return False
         return dpotrf(P, lower=0, clean=0)[1] == 0   # LAPACK's Cholesky succeeds (the values were finite)
 
@@ -370,15 +370,15 @@ class UkfEstimator:
 
     def estimate(self, now_s: float):
         """Head position, speed and their 1-sigma at controller time `now_s`, predicted from the newest data."""
+        memo = self._estimate_memo
+        if memo is not None and memo[1] == now_s and memo[0] is (self._states[-1] if self._states else self._base) \
+                and memo[2] == self._clock.offset_s and memo[3] == self._events[-1].t_s:
+            return memo[4]
         state = self._newest
         if state is None or self._clock is None:
             return None
         offset_s = self._clock.offset_s
         newest_t_s = self._events[-1].t_s
-        memo = self._estimate_memo
-        if memo is not None and memo[0] is state and memo[1] == now_s and memo[2] == offset_s \
-                and memo[3] == newest_t_s:
-            return memo[4]
         t_s, x, P = state.snap
         dt_s = (now_s - offset_s) - t_s
         q = self.noise.accel_psd_m2ps3
