@@ -19,7 +19,6 @@ import bisect
 import math
 from dataclasses import dataclass, fields
 
-import numpy as np
 from scipy.linalg.lapack import dpotrf
 
 from cbtc.errors import ConfigError
