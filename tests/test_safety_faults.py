@@ -44,7 +44,7 @@ def test_follower_stops_behind_a_leader_that_stops_dead(square):
     run_to(sim, 20.0)
     leader, follower = sim.trains
     assert follower.v_mps > 0.3, "the follower is running when the leader stops"
-    assert sim.policy.modes.get("B") in ("sync", "free")
+    assert sim.zc.trains["B"].mode in ("sync", "free")
     # the leader stops dead: speed zero at once, wheels locked from now on
     leader.stop_dead()
     run_to(sim, 30.0)

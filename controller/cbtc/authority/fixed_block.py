@@ -12,6 +12,7 @@ otherwise from the estimates widened by k sigma.
 
 from cbtc.authority.rules import AuthorityParams
 from cbtc.authority.speed_code_channel import SpeedCodeChannel
+from cbtc.authority.values import Authority, Situation
 from cbtc.railway.layout import Block
 
 
@@ -26,6 +27,7 @@ def equal_blocks(length_m: float, count: int):
 class FixedBlockPolicy:
     name = "fixed_block"
     fast_reports = False   # the authority rests on track circuits, not on the train ahead's reports
+    needs_spans = True     # the zone passes every train's span (Situation.spans): its occupancy
 
     def __init__(self, params: AuthorityParams = None, blocks=None, speed_codes=(0.5, 0.75, 1.0),
                  track_circuits=None, code_ber=0.0, seed=0):
@@ -45,20 +47,6 @@ class FixedBlockPolicy:
         if isinstance(self._blocks, int):
             return equal_blocks(layout.length_m, self._blocks)
         return tuple(self._blocks)
-
-    def _spans(self, zc):
-        """(train_id, head_s, tail_s) of every train as the track circuits see them."""
-        if self.track_circuits is not None:
-            return self.track_circuits()
-        spans = []
-        for st in zc.trains.values():
-            if st.report is None or not st.estimator.localized:
-                continue
-            est = st.estimator.estimate(st.report_t_s)
-            widen = self.params.k_sigma * est.sigma_s_m
-            spans.append((st.train_id, zc.layout.wrap(est.s_m + widen),
-                          zc.layout.wrap(est.s_m - st.setup.profile.length_m - widen)))
-        return spans
 
     @staticmethod
     def _index_at(blocks, layout, s_m):
@@ -80,41 +68,45 @@ class FixedBlockPolicy:
                 taken.add(i)
         return taken
 
-    def authority(self, zc, state, leader, now_s):
-        layout = zc.layout
-        profile = state.setup.profile
+    def authority(self, sit: Situation) -> Authority:
+        """The Authority of `sit.own`'s train from the occupancy in `sit.spans` and the speed code it receives."""
+        layout = sit.layout
+        own = sit.own
+        profile = own.profile
         blocks = self.blocks(layout)
-        own = state.estimator.estimate(state.report_t_s)
-        spans = self._spans(zc)
-        clear_ahead, distance_m = self.clear_run(layout, blocks, spans, state.train_id, own.s_m)
+        clear_ahead, distance_m, reason = self.clear_run(layout, blocks, sit.spans, own.train_id, own.s_m)
         code = min(clear_ahead, len(self.speed_codes) - 1)
         i = self._index_at(blocks, layout, own.s_m)
         received = self.codes.transmit(i, code)
         if received < code:
             # a rejected (or lower) code: the train may go only as far as that code allows
-            distance_m = min(distance_m, layout.ahead_m(own.s_m, blocks[(i + received) % len(blocks)].end_m))
+            limit_m = layout.ahead_m(own.s_m, blocks[(i + received) % len(blocks)].end_m)
+            if limit_m < distance_m:
+                distance_m, reason = limit_m, f"speed code {received} received for {code}"
         distance_m -= self.params.margin_m + self.params.k_sigma * own.sigma_s_m
         code_mps = self.speed_codes[min(received, len(self.speed_codes) - 1)] * profile.v_max_mps
-        return distance_m, code_mps, profile.accel_max_mps2, profile.beta_s_mps2
+        return Authority(distance_m, code_mps, profile.accel_max_mps2, profile.beta_s_mps2, f"code {received}",
+                         reason)
 
     def clear_run(self, layout, blocks, spans, train_id, head_s):
-        """(clear blocks ahead, distance from the head to the first occupied block's entry) for a train at `head_s`.
+        """(clear blocks ahead, distance from the head to the first occupied block's entry, what limits it) for a
+        train at `head_s`.
 
         A block is occupied if any part of another train is in it. If another train stands in the train's own block
-        ahead of it (only possible at start-up), the train must stay: (0, 0)."""
+        ahead of it (only possible at start-up), the train must stay: (0, 0, ...)."""
         i = self._index_at(blocks, layout, head_s)
         to_end_m = layout.ahead_m(head_s, blocks[i].end_m)
         for other, _head, tail in spans:
             if other != train_id and layout.ahead_m(head_s, tail) < to_end_m:
-                return 0, 0.0
+                return 0, 0.0, f"train {other} in its own block"
         taken = self._taken(layout, blocks, spans, train_id)
         clear, j = 0, (i + 1) % len(blocks)
         while j not in taken and j != i:
             clear += 1
             j = (j + 1) % len(blocks)
         if j == i:
-            return len(blocks), layout.length_m  # alone on the loop
-        return clear, layout.ahead_m(head_s, blocks[j].start_m)
+            return len(blocks), layout.length_m, "alone on the loop"
+        return clear, layout.ahead_m(head_s, blocks[j].start_m), f"block {blocks[j].name} occupied"
 
     def protected_m(self, layout, train_id, spans):
         """True distance (m) from `train_id`'s head to the entry of the first truly occupied block ahead (or to the
@@ -127,5 +119,5 @@ class FixedBlockPolicy:
         in_block = [d for d in ahead if d < to_end_m]
         if in_block:
             return min(in_block) - self.params.margin_m
-        clear, distance_m = self.clear_run(layout, blocks, spans, train_id, head)
+        _clear, distance_m, _why = self.clear_run(layout, blocks, spans, train_id, head)
         return distance_m - self.params.margin_m

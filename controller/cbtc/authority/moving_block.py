@@ -17,10 +17,12 @@ from cbtc.authority.control_laws import (
 )
 from cbtc.authority.rules import (
     AuthorityParams,
+    checked_gap_m,
     combined_sigma_m,
     minimum_gap_m,
     moving_block_distance_m,
 )
+from cbtc.authority.values import Authority, Situation
 from cbtc.firmware import obu
 
 _STANDING_MPS = 0.02
@@ -30,12 +32,12 @@ _STOP_WINDOW_M = obu.DEFAULTS["stop_window_mm"] / 1000.0   # the onboard service
 class MovingBlockPolicy:
     name = "moving_block"
     fast_reports = True   # the authority rests on the train ahead's reports: ask it for fast ones when followed
+    needs_spans = False   # the train ahead alone limits the authority
 
     def __init__(self, params: AuthorityParams = None, sync_tolerance_m: float = 0.01, takagi: bool = True):
         self.params = params or AuthorityParams()
         self.sync_tolerance_m = sync_tolerance_m
         self.takagi = takagi
-        self.modes = {}       # train_id -> 'free' | 'sync' | 'departure', for supervision and tests
 
     def protected_m(self, layout, train_id, spans):
         """True distance (m) from `train_id`'s head to the point its authority protects: the true tail of the train
@@ -46,37 +48,37 @@ class MovingBlockPolicy:
             return float("inf")
         return min(others) - self.params.margin_m
 
-    def usable_gap(self, zc, state, leader, now_s):
-        """(distance_m, leader_v_mps) the follower may still travel, as the authority sees it."""
-        layout = zc.layout
-        profile = state.setup.profile
-        own = state.estimator.estimate(state.report_t_s)
+    def usable_gap(self, sit: Situation):
+        """(distance_m, leader_v_mps, fields of the Authority that say what the distance rests on)."""
+        layout, own, leader = sit.layout, sit.own, sit.leader
         if leader is None:
             # alone: its own tail is the train ahead on a loop; the end of the track on an open line
-            gap_m = layout.length_m - profile.length_m if layout.closed else layout.length_m - own.s_m
-            state.leader_data_t_s, state.sigma_m = None, own.sigma_s_m
-            return moving_block_distance_m(gap_m, own.sigma_s_m, 0.0, self.params), None
-        ahead = leader.estimator.estimate(leader.report_t_s)
-        tail_s = layout.wrap(ahead.s_m - leader.setup.profile.length_m)
+            gap_m = layout.length_m - own.profile.length_m if layout.closed else layout.length_m - own.s_m
+            why = {"reason": "own tail (alone on the loop)" if layout.closed else "end of the line",
+                   "sigma_m": own.sigma_s_m}
+            return moving_block_distance_m(gap_m, own.sigma_s_m, 0.0, self.params), None, why
+        tail_s = layout.wrap(leader.s_m - leader.profile.length_m)
         gap_m = layout.ahead_m(own.s_m, tail_s)
-        if layout.closed and gap_m > layout.length_m - leader.setup.profile.length_m:
+        if layout.closed and gap_m > layout.length_m - leader.profile.length_m:
             gap_m -= layout.length_m  # the estimates overlap: negative gap, no authority
+        sigma_m = combined_sigma_m(own.sigma_s_m, leader.sigma_s_m)
         # the follower's own ranging to the leader, when it has one, caps the gap and checks the picture
-        gap_m = zc.checked_gap_m(state, gap_m, combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m), now_s)
+        used_m, alarm = checked_gap_m(gap_m, sigma_m, sit.measured_gap, sit.now_s, self.params,
+                                      sit.ranging_sigma_m, sit.use_measured_gap)
         # the leader where it was last seen (brick wall: it may have stopped dead since, so its position is not
         # extrapolated); the older that is, the more it may have rolled back: stale data shrinks the authority (and
         # the zone controller stops extending it at all after max_leader_age_s)
-        age_s = now_s - leader.report_t_s
-        state.leader_data_t_s = leader.report_t_s
-        state.sigma_m = combined_sigma_m(own.sigma_s_m, ahead.sigma_s_m)
-        return moving_block_distance_m(gap_m, own.sigma_s_m, ahead.sigma_s_m, self.params, age_s), ahead.v_mps
+        age_s = sit.now_s - leader.data_t_s
+        why = {"reason": f"train {leader.train_id}'s tail" + (" (measured)" if used_m < gap_m else ""),
+               "leader_data_t_s": leader.data_t_s, "sigma_m": sigma_m, "gap_est_m": gap_m, "gap_alarm": alarm}
+        return moving_block_distance_m(used_m, own.sigma_s_m, leader.sigma_s_m, self.params, age_s), leader.v_mps, why
 
-    def authority(self, zc, state, leader, now_s):
-        """(distance_m, v_cap_mps, acc_mps2, dec_mps2) for `state`'s train behind `leader` (None: alone)."""
-        profile = state.setup.profile
+    def authority(self, sit: Situation) -> Authority:
+        """The Authority of `sit.own`'s train behind `sit.leader` (None: alone)."""
+        own = sit.own
+        profile = own.profile
         beta_s = profile.beta_s_mps2
-        own = state.estimator.estimate(state.report_t_s)
-        distance_m, v_leader = self.usable_gap(zc, state, leader, now_s)
+        distance_m, v_leader, why = self.usable_gap(sit)
         # The braking curve to the end of authority is supervised on board, against the exact odometer, with the
         # reaction time counted; the end of authority is a fixed point of that odometer, so communication latency
         # and the follower's data age do not move it, and the command expires `ttl_s` after the report it answers.
@@ -84,34 +86,31 @@ class MovingBlockPolicy:
         v_cap = profile.v_max_mps
         acc, dec = profile.accel_max_mps2, beta_s
         mode = "free"
-        if self.takagi and leader is not None:
+        if self.takagi and sit.leader is not None:
             v_b = max(0.0, own.v_mps)
             if v_b > _STANDING_MPS and distance_m <= minimum_gap_m(v_b, beta_s, 0.0) + _STOP_WINDOW_M \
                     + self.sync_tolerance_m:
                 mode = "sync"
                 beta_b = sync_deceleration_mps2(v_b, max(0.0, v_leader), beta_s)
-                horizon_s = zc.cycle_s + self.params.latency_s
+                horizon_s = sit.cycle_s + self.params.latency_s
                 if beta_b > 0:
                     v_cap = min(v_cap, max(0.0, v_b - beta_b * horizon_s))
                     dec = min(beta_s, max(0.05 * beta_s, beta_b))
             elif v_b <= _STANDING_MPS and abs(v_leader) <= _STANDING_MPS and distance_m <= self.sync_tolerance_m:
                 mode = "departure"
         if self.takagi:
-            acc = self._departure_acc(zc, state, leader, mode, acc)
-        self.modes[state.train_id] = mode
-        return distance_m, v_cap, acc, dec
+            acc = self._departure_acc(sit, mode, acc)
+        return Authority(distance_m, v_cap, acc, dec, mode, **why)
 
-    def _departure_acc(self, zc, state, leader, mode, acc):
+    @staticmethod
+    def _departure_acc(sit, mode, acc):
         """Eqs. 25-26: the follower of a departing pair accelerates at alpha_B, its leader at alpha_A = k beta_s."""
-        profile = state.setup.profile
-        if mode == "departure" and leader is not None:
-            k = departure_k_for(leader.setup.profile.accel_max_mps2, profile.accel_max_mps2, profile.beta_s_mps2)
+        profile = sit.own.profile
+        if mode == "departure" and sit.leader is not None:
+            k = departure_k_for(sit.leader.profile.accel_max_mps2, profile.accel_max_mps2, profile.beta_s_mps2)
             return departure_accelerations_mps2(k, profile.beta_s_mps2)[1]
         # am I the leader of a pair standing at minimum distance?
-        for other in zc.trains.values():
-            if other is not state and self.modes.get(other.train_id) == "departure":
-                own = state.estimator.estimate(state.report_t_s)
-                if own is not None and own.v_mps <= 0.5 * profile.v_max_mps:
-                    k = departure_k_for(profile.accel_max_mps2, other.setup.profile.accel_max_mps2, profile.beta_s_mps2)
-                    return departure_accelerations_mps2(k, profile.beta_s_mps2)[0]
+        if sit.departing and sit.own.v_mps <= 0.5 * profile.v_max_mps:
+            k = departure_k_for(profile.accel_max_mps2, sit.departing[0].accel_max_mps2, profile.beta_s_mps2)
+            return departure_accelerations_mps2(k, profile.beta_s_mps2)[0]
         return acc

@@ -46,6 +46,19 @@ def moving_block_distance_m(gap_est_m: float, sigma_follower_m: float, sigma_lea
             - rollback_allowance_m(leader_age_s, p))
 
 
+def checked_gap_m(gap_est_m: float, sigma_m: float, measured, now_s: float, p: AuthorityParams,
+                  ranging_sigma_m: float, use_measured: bool):
+    """(gap m the authority may use, alarm) from the estimated gap (1-sigma `sigma_m`) and the train's own measured
+    one, `measured` = (time s, gap m) or None: the shorter of the two while the measurement is fresh (not older than
+    max_leader_age_s; only the estimate when `use_measured` is False). The alarm ("the picture disagrees") is raised
+    when they differ by more than 3 sigma of the estimate plus 3 sigma of the ranging; None without a fresh one."""
+    if measured is None or now_s - measured[0] > p.max_leader_age_s:
+        return gap_est_m, None
+    measured_m = measured[1]
+    alarm = abs(gap_est_m - measured_m) > 3.0 * (sigma_m + ranging_sigma_m)
+    return (min(gap_est_m, measured_m) if use_measured else gap_est_m), alarm
+
+
 def braking_curve_speed_mps(distance_m: float, v_now_mps: float, beta_mps2: float, dead_time_s: float) -> float:
     """Highest speed (m/s) from which a train stops within `distance_m` at `beta_mps2`, after `dead_time_s` at
     `v_now_mps`."""

@@ -76,6 +76,7 @@ def _print_status(zc, bus, now_s):
     for train_id, row in zc.snapshot(now_s).items():
         faults = ",".join(row["faults"]) or "-"
         parts.append(f"{train_id} s={fmt(row['s_m'])} v={fmt(row['v_mps'])} lim={fmt(row['limit_s_m'])} "
+                     f"[{row['limited_by'] or '-'}] "
                      f"{row['mode'] or 'silent'} next={row['next_stop'] or '-'} flt={faults}")
     link = "up" if bus.connected else "DOWN"
     print(f"t={now_s:6.1f}s broker {link} | " + " | ".join(parts), flush=True)

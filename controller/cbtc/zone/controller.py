@@ -21,7 +21,8 @@ import math
 import random
 from dataclasses import dataclass, field
 
-from cbtc.authority.rules import AuthorityParams, following_reach_m
+from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m
+from cbtc.authority.values import Situation, TrainPicture
 from cbtc.estimation.estimate import BoardClock
 from cbtc.firmware import obu
 from cbtc.protocol import wire
@@ -74,6 +75,8 @@ class TrainState:
         self.fast_need_m = 0.0       # the authority left to that follower (m): the less, the more it needs them
         self.leader_data_t_s = None  # sample time of the train-ahead data the last authority rests on (moving block)
         self.sigma_m = None          # combined 1-sigma of both estimates taken off that authority (k of them)
+        self.authority = None        # the newest Authority: what limits this train, and why
+        self.mode = None             # its mode (moving block: free, sync, departure)
         self.rng_gap = None          # (controller time s, gap m) last measured by the train's own ranging
         self.gap_alarm = False       # the measured gap disagrees with the estimated one ("picture disagrees")
         self.gap_alarms = 0
@@ -319,7 +322,9 @@ class ZoneController:
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
         if all_located:
-            safe_m, v_cap_mps, acc_mps2, dec_mps2 = self.policy.authority(self, state, leader, now_s)
+            auth = self.policy.authority(self._situation(state, leader, now_s))
+            self._took(state, auth)
+            safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
             stop_m = self._station_stop(state, now_s)
             if leader is not None and safe_m < following_reach_m(state.setup.profile):
                 # this train is held by the one ahead: ask that one for fast reports, for a while
@@ -331,6 +336,57 @@ class ZoneController:
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
+
+    @staticmethod
+    def _picture(state):
+        est = state.estimator.estimate(state.report_t_s)
+        return TrainPicture(state.train_id, est.s_m, est.sigma_s_m, est.v_mps, state.report_t_s, state.setup.profile)
+
+    def _situation(self, state, leader, now_s):
+        """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
+        departing = tuple(other.setup.profile for other in self.trains.values()
+                          if other is not state and other.mode == "departure")
+        return Situation(self.layout, now_s, self.cycle_s, self._picture(state),
+                         None if leader is None else self._picture(leader), state.rng_gap, self.ranging_sigma_m,
+                         self.use_measured_gap, departing, self._spans() if self.policy.needs_spans else ())
+
+    def _spans(self):
+        """(train_id, head_s, tail_s) of every train as the track circuits see them: the world's own when the policy
+        has them (simulation), otherwise the located trains' estimates widened by k sigma."""
+        circuits = getattr(self.policy, "track_circuits", None)
+        if circuits is not None:
+            return tuple(circuits())
+        spans = []
+        for st in self.trains.values():
+            if st.report is None or not st.estimator.localized:
+                continue
+            est = st.estimator.estimate(st.report_t_s)
+            widen = self.params.k_sigma * est.sigma_s_m
+            spans.append((st.train_id, self.layout.wrap(est.s_m + widen),
+                          self.layout.wrap(est.s_m - st.setup.profile.length_m - widen)))
+        return tuple(spans)
+
+    def _took(self, state, auth):
+        """Keep what `state`'s new authority rests on, and raise the "picture disagrees" alarm when it does."""
+        state.authority = auth
+        state.mode = auth.mode
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("train %s: authority %.3f m (%s), limited by %s", state.train_id, auth.distance_m, auth.mode,
+                      auth.reason)
+        state.leader_data_t_s = auth.leader_data_t_s
+        state.sigma_m = auth.sigma_m
+        if auth.gap_est_m is not None:
+            self._note_gap(state, auth.gap_alarm, auth.gap_est_m)
+
+    def _note_gap(self, state, alarm, gap_est_m):
+        if alarm is None:
+            state.gap_alarm = False
+            return
+        if alarm and not state.gap_alarm:
+            state.gap_alarms += 1
+            log.warning("train %s: picture disagrees: estimated gap %.3f m, measured %.3f m", state.train_id,
+                        gap_est_m, state.rng_gap[1])
+        state.gap_alarm = alarm
 
     def _answer(self, state, now_s):
         """Event-driven: a fresh report is answered at once, and it extends its follower's authority at once too."""
@@ -461,20 +517,12 @@ class ZoneController:
         return False
 
     def checked_gap_m(self, state, gap_est_m, sigma_m, now_s):
-        """The gap (m) the authority may use: the estimated gap, or the train's own measured gap when that is fresh
-        and shorter. Raises the "picture disagrees" alarm when they differ by more than 3 sigma of the estimate
-        plus 3 sigma of the ranging (`ranging_sigma_m`)."""
-        if state.rng_gap is None or now_s - state.rng_gap[0] > self.params.max_leader_age_s:
-            state.gap_alarm = False
-            return gap_est_m
-        measured_m = state.rng_gap[1]
-        alarm = abs(gap_est_m - measured_m) > 3.0 * (sigma_m + self.ranging_sigma_m)
-        if alarm and not state.gap_alarm:
-            state.gap_alarms += 1
-            log.warning("train %s: picture disagrees: estimated gap %.3f m, measured %.3f m", state.train_id,
-                        gap_est_m, measured_m)
-        state.gap_alarm = alarm
-        return min(gap_est_m, measured_m) if self.use_measured_gap else gap_est_m
+        """The gap (m) the authority may use from the estimated one and `state`'s own measured gap
+        (cbtc.authority.rules.checked_gap_m), raising the "picture disagrees" alarm when they differ."""
+        gap_m, alarm = checked_gap_m(gap_est_m, sigma_m, state.rng_gap, now_s, self.params, self.ranging_sigma_m,
+                                     self.use_measured_gap)
+        self._note_gap(state, alarm, gap_est_m)
+        return gap_m
 
     # --- supervision ------------------------------------------------------------------------------------------------
 
@@ -490,6 +538,7 @@ class ZoneController:
                 "sigma_s_m": None if est is None else round(est.sigma_s_m, 4),
                 "limit_s_m": None if st.limit_s is None else round(st.limit_s, 4),
                 "leader_data_age_s": None if st.leader_data_t_s is None else round(now_s - st.leader_data_t_s, 3),
+                "limited_by": None if st.authority is None else st.authority.reason,
                 "mode": None if st.report is None else st.report["mode"],
                 "faults": [] if st.report is None else list(st.report["flt"]),
                 "next_stop": st.next_stop,

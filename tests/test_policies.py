@@ -1,0 +1,88 @@
+"""The authority policies are functions of values: a Situation in, a frozen Authority out with the reason, nothing
+changed on the way."""
+
+import copy
+import dataclasses
+
+import pytest
+
+from cbtc.authority.control_laws import departure_accelerations_mps2, departure_k_for
+from cbtc.authority.fixed_block import FixedBlockPolicy
+from cbtc.authority.moving_block import MovingBlockPolicy
+from cbtc.authority.rules import AuthorityParams, checked_gap_m, moving_block_distance_m
+from cbtc.authority.values import Authority, Situation, TrainPicture
+from cbtc.layout_files import load_layout
+from cbtc.railway.train_profile import TrainProfile
+
+LAYOUT = load_layout("itb_square")
+PROFILE = TrainProfile()
+
+
+def picture(train_id, s_m, v_mps=0.3, sigma_s_m=0.01, data_t_s=10.0):
+    return TrainPicture(train_id, s_m, sigma_s_m, v_mps, data_t_s, PROFILE)
+
+
+def test_moving_block_runs_to_the_leaders_tail_less_margin_sigmas_and_the_rollback_of_its_data_age():
+    params = AuthorityParams()
+    policy = MovingBlockPolicy(params, takagi=False)
+    own, leader = picture("B", 1.0), picture("A", 3.0, data_t_s=9.5)
+    sit = Situation(LAYOUT, 10.0, 0.05, own, leader)
+    before = copy.deepcopy(policy.__dict__)
+    auth = policy.authority(sit)
+    gap_m = 3.0 - PROFILE.length_m - 1.0
+    assert auth.distance_m == pytest.approx(moving_block_distance_m(gap_m, 0.01, 0.01, params, 0.5))
+    assert auth.reason == "train A's tail" and auth.mode == "free" and auth.leader_data_t_s == 9.5
+    assert auth.gap_est_m == pytest.approx(gap_m) and auth.gap_alarm is None
+    assert policy.__dict__ == before                      # the policy keeps nothing of the train
+    assert policy.authority(sit) == auth                  # and the same values give the same authority
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        auth.distance_m = 99.0
+
+
+def test_moving_block_alone_on_a_loop_is_limited_by_its_own_tail():
+    auth = MovingBlockPolicy().authority(Situation(LAYOUT, 10.0, 0.05, picture("A", 1.0)))
+    assert auth.reason == "own tail (alone on the loop)" and auth.leader_data_t_s is None
+    assert auth.distance_m == pytest.approx(moving_block_distance_m(LAYOUT.length_m - PROFILE.length_m, 0.01, 0.0,
+                                                                    AuthorityParams()))
+
+
+def test_a_shorter_fresh_measured_gap_caps_the_authority_and_a_disagreeing_one_raises_the_alarm():
+    params = AuthorityParams()
+    assert checked_gap_m(1.0, 0.01, None, 10.0, params, 0.02, True) == (1.0, None)
+    assert checked_gap_m(1.0, 0.01, (8.0, 0.5), 10.0, params, 0.02, True) == (1.0, None)   # stale measurement
+    assert checked_gap_m(1.0, 0.01, (10.0, 0.95), 10.0, params, 0.02, True) == (0.95, False)
+    assert checked_gap_m(1.0, 0.01, (10.0, 0.5), 10.0, params, 0.02, True) == (0.5, True)
+    assert checked_gap_m(1.0, 0.01, (10.0, 0.5), 10.0, params, 0.02, False) == (1.0, True)
+    sit = Situation(LAYOUT, 10.0, 0.05, picture("B", 1.0), picture("A", 3.0), measured_gap=(10.0, 0.5))
+    auth = MovingBlockPolicy().authority(sit)
+    assert auth.reason == "train A's tail (measured)" and auth.gap_alarm is True
+
+
+def test_the_leader_of_a_departing_pair_takes_alpha_a_and_its_follower_alpha_b():
+    policy = MovingBlockPolicy()
+    slow = TrainProfile(accel_max_mps2=0.3)   # the follower's traction limits the pair
+    alpha_a, alpha_b = departure_accelerations_mps2(departure_k_for(0.6, 0.3, 0.8), 0.8)
+    standing = Situation(LAYOUT, 10.0, 0.05, picture("A", 3.0, v_mps=0.0), picture("C", 6.0, 0.0))
+    assert policy.authority(standing).acc_mps2 == PROFILE.accel_max_mps2
+    assert policy.authority(dataclasses.replace(standing, departing=(slow,))).acc_mps2 == pytest.approx(alpha_a)
+    params = AuthorityParams()
+    tail_s = 3.0 - PROFILE.length_m
+    s_b = tail_s - params.margin_m - params.k_sigma * (2 ** 0.5) * 0.01 - 0.005   # 5 mm of authority left
+    own = TrainPicture("B", s_b, 0.01, 0.0, 10.0, slow)
+    follower = policy.authority(Situation(LAYOUT, 10.0, 0.05, own, picture("A", 3.0, v_mps=0.0)))
+    assert follower.mode == "departure" and follower.acc_mps2 == pytest.approx(alpha_b)
+
+
+def test_fixed_block_names_the_occupied_block_or_the_train_in_its_own_block():
+    policy = FixedBlockPolicy(blocks=8)
+    blocks = policy.blocks(LAYOUT)
+    size_m = LAYOUT.length_m / 8
+    own = picture("B", 0.5 * size_m)
+    spans = (("B", 0.5 * size_m, 0.5 * size_m - 0.3), ("A", 3.6 * size_m, 3.6 * size_m - 0.3))
+    auth = policy.authority(Situation(LAYOUT, 10.0, 0.05, own, spans=spans))
+    assert isinstance(auth, Authority) and auth.reason == f"block {blocks[3].name} occupied"
+    assert auth.distance_m == pytest.approx(3 * size_m - 0.5 * size_m - policy.params.margin_m
+                                            - policy.params.k_sigma * 0.01)
+    spans = (("B", 0.5 * size_m, 0.5 * size_m - 0.3), ("A", 0.95 * size_m + 0.3, 0.95 * size_m))
+    auth = policy.authority(Situation(LAYOUT, 10.0, 0.05, own, spans=spans))
+    assert auth.reason == "train A in its own block" and auth.distance_m < 0
