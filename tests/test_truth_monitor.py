@@ -2,7 +2,12 @@
 
 from types import SimpleNamespace
 
-from cbtc.sim.truth import TruthMonitor
+import pytest
+
+from cbtc.authority.fixed_block import FixedBlockPolicy
+from cbtc.authority.moving_block import MovingBlockPolicy
+from cbtc.layout_files import load_layout
+from cbtc.sim.truth import TruthMonitor, protected_m
 
 
 def _train(odo_mm, eoa_mm):
@@ -42,3 +47,18 @@ def test_on_a_line_the_front_train_has_no_train_ahead_and_a_head_behind_a_tail_i
     assert not head_inside(line, 1.0, 2.0, 0.3)
     assert head_inside(line, 2.1, 2.0, 0.3)                        # its head inside the leader's span
     assert not head_inside(line, 2.4, 2.0, 0.3)                    # past the leader's head: not inside its span
+
+
+def test_the_protected_point_is_the_true_tail_ahead_or_the_first_truly_occupied_block_less_the_margin():
+    layout = load_layout("itb_square")
+    spans = [("B", 1.0, 0.7), ("A", 2.5, 2.2)]
+    moving = MovingBlockPolicy()
+    assert protected_m(moving, layout, "B", spans) == pytest.approx(1.2 - moving.params.margin_m)
+    assert protected_m(moving, layout, "B", spans[:1]) == float("inf")
+    fixed = FixedBlockPolicy(blocks=8)
+    size_m = layout.length_m / 8
+    entry_m = fixed.index_at(fixed.blocks(layout), layout, 2.2) * size_m   # A's tail's block starts here
+    assert protected_m(fixed, layout, "B", spans) == pytest.approx(entry_m - 1.0 - fixed.params.margin_m)
+    inside = [("B", 1.0, 0.7), ("A", 1.35, 1.05)]                           # A's tail in B's own block, ahead of B
+    assert fixed.index_at(fixed.blocks(layout), layout, 1.05) == fixed.index_at(fixed.blocks(layout), layout, 1.0)
+    assert protected_m(fixed, layout, "B", inside) == pytest.approx(0.05 - fixed.params.margin_m)

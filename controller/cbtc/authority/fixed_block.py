@@ -49,7 +49,7 @@ class FixedBlockPolicy:
         return tuple(self._blocks)
 
     @staticmethod
-    def _index_at(blocks, layout, s_m):
+    def index_at(blocks, layout, s_m):
         for i, b in enumerate(blocks):
             if layout.ahead_m(b.start_m, s_m) < layout.ahead_m(b.start_m, b.end_m):
                 return i
@@ -60,8 +60,8 @@ class FixedBlockPolicy:
         for train_id, head_s, tail_s in spans:
             if train_id == exclude_train_id:
                 continue
-            i = self._index_at(blocks, layout, tail_s)
-            j = self._index_at(blocks, layout, head_s)
+            i = self.index_at(blocks, layout, tail_s)
+            j = self.index_at(blocks, layout, head_s)
             taken.add(i)
             while i != j:
                 i = (i + 1) % len(blocks)
@@ -76,7 +76,7 @@ class FixedBlockPolicy:
         blocks = self.blocks(layout)
         clear_ahead, distance_m, reason = self.clear_run(layout, blocks, sit.spans, own.train_id, own.s_m)
         code = min(clear_ahead, len(self.speed_codes) - 1)
-        i = self._index_at(blocks, layout, own.s_m)
+        i = self.index_at(blocks, layout, own.s_m)
         received = self.codes.transmit(i, code)
         if received < code:
             # a rejected (or lower) code: the train may go only as far as that code allows
@@ -94,7 +94,7 @@ class FixedBlockPolicy:
 
         A block is occupied if any part of another train is in it. If another train stands in the train's own block
         ahead of it (only possible at start-up), the train must stay: (0, 0, ...)."""
-        i = self._index_at(blocks, layout, head_s)
+        i = self.index_at(blocks, layout, head_s)
         to_end_m = layout.ahead_m(head_s, blocks[i].end_m)
         for other, _head, tail in spans:
             if other != train_id and layout.ahead_m(head_s, tail) < to_end_m:
@@ -107,17 +107,3 @@ class FixedBlockPolicy:
         if j == i:
             return len(blocks), layout.length_m, "alone on the loop"
         return clear, layout.ahead_m(head_s, blocks[j].start_m), f"block {blocks[j].name} occupied"
-
-    def protected_m(self, layout, train_id, spans):
-        """True distance (m) from `train_id`'s head to the entry of the first truly occupied block ahead (or to the
-        tail of a train in its own block), less S_M; negative = the protected zone is entered."""
-        head = next(h for t, h, _ in spans if t == train_id)
-        blocks = self.blocks(layout)
-        i = self._index_at(blocks, layout, head)
-        to_end_m = layout.ahead_m(head, blocks[i].end_m)
-        ahead = [layout.ahead_m(head, tail) for t, _h, tail in spans if t != train_id]
-        in_block = [d for d in ahead if d < to_end_m]
-        if in_block:
-            return min(in_block) - self.params.margin_m
-        _clear, distance_m, _why = self.clear_run(layout, blocks, spans, train_id, head)
-        return distance_m - self.params.margin_m

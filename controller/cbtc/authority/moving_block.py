@@ -39,15 +39,6 @@ class MovingBlockPolicy:
         self.sync_tolerance_m = sync_tolerance_m
         self.takagi = takagi
 
-    def protected_m(self, layout, train_id, spans):
-        """True distance (m) from `train_id`'s head to the point its authority protects: the true tail of the train
-        ahead less S_M. `spans` lists (train_id, head_s, tail_s) in truth. Negative = the protected zone is entered."""
-        head = next(h for t, h, _ in spans if t == train_id)
-        others = [layout.ahead_m(head, tail) for t, _, tail in spans if t != train_id]
-        if not others:
-            return float("inf")
-        return min(others) - self.params.margin_m
-
     def usable_gap(self, sit: Situation):
         """(distance_m, leader_v_mps, fields of the Authority that say what the distance rests on)."""
         layout, own, leader = sit.layout, sit.own, sit.leader

@@ -12,7 +12,7 @@ import numpy as np
 from cbtc.authority.rules import following_reach_m
 from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
-from cbtc.sim.truth import head_inside, train_ahead
+from cbtc.sim.truth import head_inside, protected_m, train_ahead
 from cbtc.zone.config import train_key
 
 STRANDED_S = 20.0
@@ -90,7 +90,7 @@ class Recorder:
             self.constrained[i].append(state.safe_m is not None and state.safe_m < following_reach_m(train.profile))
             if i in ahead and self.constrained[i][-1]:
                 self.following_gap_m[i].append(self.gap_m[i][-1])
-            over = self.sim.policy.protected_m(layout, train.train_id, spans) < -0.001
+            over = protected_m(self.sim.policy, layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i]:
                 self.overruns[i] += 1
             self._overrun[i] = over
