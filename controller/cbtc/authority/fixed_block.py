@@ -36,7 +36,8 @@ class FixedBlockPolicy:
         # fraction of line speed by clear blocks ahead: [0] = stop at this block's end, [1] = approach, [2+] = line
         self.speed_codes = tuple(speed_codes)
         self.track_circuits = track_circuits  # callable() -> list of (train_id, head_s, tail_s) in truth, or None
-        # every code reaches the train as a Hamming-coded telegram through the rails (bit-error rate code_ber)
+        # the rails: every code reaches the train as a Hamming-coded telegram (bit-error rate code_ber); the zone
+        # sends through them, the policy only decides
         self.codes = SpeedCodeChannel(code_ber, seed)
 
     def blocks(self, layout):
@@ -68,8 +69,17 @@ class FixedBlockPolicy:
                 taken.add(i)
         return taken
 
+    def code(self, sit: Situation):
+        """(block index, speed code) the wayside sends `sit.own`'s train from the occupancy in `sit.spans`: the code
+        counts the clear blocks ahead, up to line speed. The zone sends it through the rails (`codes`, a noisy
+        telegram channel) and passes what the train received as `sit.received_code`."""
+        blocks = self.blocks(sit.layout)
+        clear_ahead = self.clear_run(sit.layout, blocks, sit.spans, sit.own.train_id, sit.own.s_m)[0]
+        return self.index_at(blocks, sit.layout, sit.own.s_m), min(clear_ahead, len(self.speed_codes) - 1)
+
     def authority(self, sit: Situation) -> Authority:
-        """The Authority of `sit.own`'s train from the occupancy in `sit.spans` and the speed code it receives."""
+        """The Authority of `sit.own`'s train from the occupancy in `sit.spans` and the speed code it received
+        (`sit.received_code`; None: the code sent)."""
         layout = sit.layout
         own = sit.own
         profile = own.profile
@@ -77,7 +87,7 @@ class FixedBlockPolicy:
         clear_ahead, distance_m, reason = self.clear_run(layout, blocks, sit.spans, own.train_id, own.s_m)
         code = min(clear_ahead, len(self.speed_codes) - 1)
         i = self.index_at(blocks, layout, own.s_m)
-        received = self.codes.transmit(i, code)
+        received = code if sit.received_code is None else sit.received_code
         if received < code:
             # a rejected (or lower) code: the train may go only as far as that code allows
             limit_m = layout.ahead_m(own.s_m, blocks[(i + received) % len(blocks)].end_m)

@@ -32,6 +32,7 @@ class Situation:
     use_measured_gap: bool = True     # False: a measured gap only raises the alarm
     departing: tuple = ()             # profiles of the other trains whose last authority was a departure, zone order
     spans: tuple = ()                 # (train_id, head_s, tail_s) of every train as the track circuits see them
+    received_code: int = None         # the fixed-block speed code the train received (None: the one sent)
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import hashlib
 import logging
 import math
 import random
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m
 from cbtc.authority.values import Situation, TrainPicture
@@ -322,7 +322,11 @@ class ZoneController:
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
         if all_located:
-            auth = self.policy.authority(self._situation(state, leader, now_s))
+            sit = self._situation(state, leader, now_s)
+            if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
+                block_i, code = self.policy.code(sit)
+                sit = replace(sit, received_code=self.policy.codes.transmit(block_i, code))
+            auth = self.policy.authority(sit)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
             stop_m = self._station_stop(state, now_s)
