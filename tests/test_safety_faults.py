@@ -171,3 +171,21 @@ def test_an_encoder_that_reads_short_still_stops_within_the_authority(square):
     assert sim.trains[1].v_mps == 0.0
     assert sim.recorder.collisions == [0, 0] and sim.recorder.overruns == [0, 0]
     assert sim.recorder.gap_m[1][-1] >= 0.5 * sim.config.params.margin_m
+
+
+@pytest.mark.parametrize("scale", [-0.4, float("nan"), 3.0])
+def test_an_encoder_scale_no_wheel_can_have_gives_no_authority_and_the_train_stops(square, scale):
+    """The learnt odometer-per-metre mapping flipped sign, turned non-finite or doubled: authorities in odometer units
+    would reach anywhere, so the zone extends none and the train brakes to a stop; the train ahead runs on."""
+    sim = two_trains(square, gap_m=2.5)
+    run_to(sim, 8.0)
+    state = sim.zc.trains["B"]
+    assert sim.trains[1].v_mps > 0.3
+    state.estimator.odometer_per_m_low = lambda k_sigma: scale
+    eoa_mm = state.eoa_mm
+    run_to(sim, 9.0)
+    assert state.eoa_mm <= eoa_mm and state.safe_m is None
+    assert sim.zc.refusals.counts.get(("B", "encoder scale"), 0) > 0
+    run_to(sim, 12.0)
+    assert sim.trains[1].v_mps == 0.0 and sim.trains[0].v_mps > 0.3
+    assert sim.recorder.collisions == [0, 0] and sim.recorder.overruns == [0, 0]

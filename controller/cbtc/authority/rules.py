@@ -59,6 +59,12 @@ def checked_gap_m(gap_est_m: float, sigma_m: float, measured, now_s: float, p: A
     return (min(gap_est_m, measured_m) if use_measured else gap_est_m), alarm
 
 
+def scale_trusted(odo_per_m: float, lowest: float, highest: float) -> bool:
+    """True when `odo_per_m` (odometer metres per true metre) is finite and within [lowest, highest], the band a real
+    wheel can have: outside it, an authority turned into odometer units could reach anywhere (or flip sign)."""
+    return lowest <= odo_per_m <= highest   # False for NaN
+
+
 def braking_curve_speed_mps(distance_m: float, v_now_mps: float, beta_mps2: float, dead_time_s: float) -> float:
     """Highest speed (m/s) from which a train stops within `distance_m` at `beta_mps2`, after `dead_time_s` at
     `v_now_mps`."""

@@ -21,7 +21,7 @@ import math
 import random
 from dataclasses import dataclass, field, replace
 
-from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m
+from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m, scale_trusted
 from cbtc.authority.values import Situation, TrainPicture
 from cbtc.estimation.estimate import BoardClock
 from cbtc.firmware import obu
@@ -34,6 +34,8 @@ from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
 
 log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
+_SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true metre a wheel can have: the band
+_SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
 
@@ -456,10 +458,17 @@ class ZoneController:
         service stop target `stop_m` metres ahead (None: none); the limit is kept as `limit_s` on the track for
         supervision."""
         report = state.report
-        state.safe_m = safe_m
         # a low bound of the encoder's scale (odometer m per true m): a wheel that reads short must not carry the
-        # train past its limit; the board's braking curves use it too (odo_mm_per_m)
+        # train past its limit; the board's braking curves use it too (odo_mm_per_m). Outside the band a wheel can
+        # have, the mapping into odometer units is not trusted: no authority beyond braking, the train stops
         scale_low = state.estimator.odometer_per_m_low(self.params.k_sigma)
+        if not scale_trusted(scale_low, _SCALE_LOW, _SCALE_HIGH):
+            if safe_m is not None:
+                self.refusals.note(state.train_id, "encoder scale", f"learnt {scale_low:.3f} odometer m per m, outside "
+                                   f"[{_SCALE_LOW}, {_SCALE_HIGH}]: no authority until it is learnt again", now_s)
+            safe_m, stop_m, v_cap_mps, dec_mps2 = None, None, 0.0, state.setup.profile.beta_s_mps2
+            scale_low = _SCALE_LOW
+        state.safe_m = safe_m
         if safe_m is None:
             # no picture of every train: stop now at service rate; the authority never extends. Its end is the
             # braking distance from line speed or the reported speed if higher (a report may lie low: an end set
@@ -474,7 +483,8 @@ class ZoneController:
         state.eoa_mm = eoa_mm
         # a stop target is service, not safety: the best estimate of the scale, and never beyond the end of authority
         stop_mm = eoa_mm if stop_m is None else \
-            min(eoa_mm, report["odo_mm"] + int(round(stop_m * state.estimator.odometer_per_m_low(0.0) * 1000.0)))
+            min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
+                _SCALE_LOW, state.estimator.odometer_per_m_low(0.0))) * 1000.0)))
         est = state.estimator.estimate(state.report_t_s)
         if est is None:
             state.limit_s = None
