@@ -45,6 +45,8 @@ DEFAULTS = {
     "drive_margin_pct": 20,   # duty allowed above the feed-forward of the speed reference (%)
     "guard_margin_mm": 100,   # collision guard: measured gap kept beyond the emergency braking distance (mm)
     "guard_fresh_ms": 300,    # collision guard: a measured gap older than this is not acted on (ms)
+    "max_authority_mm": 20000,  # an end of authority further ahead of the odometer than this is refused: no line
+                              # of this train is longer (set it to the layout's length; cbtc sim does) (mm)
 }
 
 _HISTORY = const(12)     # reports remembered for matching commands to the report they are based on
@@ -177,6 +179,8 @@ class OnboardUnit:
             if age_ms > self.cfg["max_data_age_ms"]:
                 raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)"
                                      % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
+            if cmd["eoa_mm"] - self.odo_mm > self.cfg["max_authority_mm"]:   # no line is that long: a zone error
+                raise wire.WireError("eoa over max_authority_mm ahead")
         except wire.WireError as exc:
             self.rejected += 1
             self.last_reject = exc.reason

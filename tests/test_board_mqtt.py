@@ -132,7 +132,7 @@ class Controller:
             time.sleep(0.02)
         raise AssertionError("timed out waiting for %s; last report %r" % (what, self.last()))
 
-    def command(self, v_mmps=400, eoa_mm=100000, ttl_ms=800):
+    def command(self, v_mmps=400, eoa_mm=10000, ttl_ms=800):
         report = self.last()
         self.cmd_seq += 1
         payload = wire.encode_command(KEY, TRAIN, report["boot"], self.cmd_seq, 7, report["seq"], v_mmps, eoa_mm,

@@ -40,7 +40,7 @@ class Bench:
     def command(self):
         self.seq += 1
         rseq = wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])["seq"]
-        payload = wire.encode_command(KEY, "B", self.unit.boot_id, self.seq, 1, rseq, 600, 100000, 800, 600, 800)
+        payload = wire.encode_command(KEY, "B", self.unit.boot_id, self.seq, 1, rseq, 600, 10000, 800, 600, 800)
         self.unit.on_message(CMD, payload, self.now_ms)
 
     def cruise(self, v_mmps, steps):

@@ -276,7 +276,7 @@ for i in range(250):
     if i < 150 and r["seq"] != answered:
         answered = r["seq"]
         unit.on_message("cbtc/train/A/cmd", wire.encode_command(KEY, "A", 9, wire.wrap_add(answered, 1), 1, answered,
-                                                                500, 100000, 800, 600, 800), now)
+                                                                500, 10000, 800, 600, 800), now)
     if i == 149:
         assert unit.rejected == 0 and unit.mode == "run" and unit.v_mmps > 300, (unit.last_reject, unit.mode)
         assert r["t_ms"] < 3000 and r["seq"] < 100

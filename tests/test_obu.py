@@ -196,7 +196,7 @@ def test_the_service_curve_stays_under_the_trip_curve_at_every_scale_and_distanc
     bench.step()
     unit = bench.unit
     for scale in range(wire.ODO_MM_PER_M_MIN, wire.ODO_MM_PER_M_MAX + 1, 50):
-        bench.command(eoa_mm=100000, odo_mm_per_m=scale)
+        bench.command(eoa_mm=10000, odo_mm_per_m=scale)
         for tenth_mm in list(range(0, 400)) + list(range(400, 50000, 97)):
             unit.eoa_mm = unit.odo_mm + tenth_mm / 10
             assert unit.braking_curve_mmps(unit.cfg["dec_mmps2"]) <= unit.trip_curve_mmps(), (scale, tenth_mm)
@@ -274,7 +274,7 @@ def test_the_curves_hold_in_true_metres_with_the_encoder_scale_the_command_state
     bench = Bench()
     bench.step()
     low = int(true_scale * 1000) - 5            # the controller's low bound, floored
-    bench.command(eoa_mm=100000, odo_mm_per_m=low)
+    bench.command(eoa_mm=10000, odo_mm_per_m=low)
     unit = bench.unit
     cfg = unit.cfg
     r_s = cfg["reaction_ms"] / 1000.0
@@ -289,7 +289,7 @@ def test_the_curves_hold_in_true_metres_with_the_encoder_scale_the_command_state
         # and it gives away no more than the bound's slack: within 1 % of the true service rate
         assert v_true ** 2 / (2 * cfg["dec_mmps2"]) >= 0.99 * service_true_mm, dist_mm
     if true_scale < 1.0:
-        bench.command(eoa_mm=100000, odo_mm_per_m=1000)
+        bench.command(eoa_mm=10000, odo_mm_per_m=1000)
         unit.eoa_mm = unit.odo_mm + 1000
         v_true = unit.trip_curve_mmps() / true_scale
         assert v_true * r_s + v_true ** 2 / (2 * cfg["emergency_dec_mmps2"]) > 1000 / true_scale
@@ -398,3 +398,18 @@ def test_a_long_report_period_ends_with_its_command():
     bench.command(ttl_ms=800)
     bench.step(v_mmps=int(bench.unit.v_ref_mmps))
     assert bench.unit.mode == "run" and bench.unit.rejected == 0
+
+
+def test_an_end_of_authority_further_ahead_than_any_line_is_refused_and_the_one_held_stays():
+    bench = Bench()
+    bench.step()
+    bench.command(eoa_mm=5000)
+    assert bench.unit.eoa_mm == 5000
+    for _ in range(10):
+        bench.step(v_mmps=300)
+    odo_mm = bench.unit.odo_mm
+    limit_mm = obu.DEFAULTS["max_authority_mm"]
+    bench.command(eoa_mm=odo_mm + limit_mm + 1)              # a zone error: no line is that long
+    assert bench.unit.eoa_mm == 5000 and "max_authority_mm" in bench.unit.last_reject and bench.unit.rejected == 1
+    bench.command(eoa_mm=odo_mm + limit_mm)
+    assert bench.unit.eoa_mm == odo_mm + limit_mm

@@ -115,7 +115,7 @@ def command_payload_is_refused_or_conforms(payload):
 
 
 command_actions = st.lists(st.one_of(
-    st.tuples(st.just("step"), st.integers(1, 200)), st.tuples(st.just("fresh"), st.integers(-5000, 100000)),
+    st.tuples(st.just("step"), st.integers(1, 200)), st.tuples(st.just("fresh"), st.integers(-5000, 20000)),
     st.tuples(st.just("replay"), st.integers(0, 10 ** 6)), st.tuples(st.just("reboot"), st.just(0)),
     st.tuples(st.just("session"), st.just(0)), st.tuples(st.just("forged"), st.just(0))), max_size=60)
 

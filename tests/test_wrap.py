@@ -29,7 +29,7 @@ def test_a_board_across_the_wrap_is_commanded_and_stops_on_expiry_as_on_its_firs
     for _ in range(150):                    # 3 s of commands answering every report
         bench.step(v_mmps=int(bench.unit.v_ref_mmps))
         if bench.last_report()["seq"] != bench.unit.cseq:
-            bench.command(eoa_mm=100000)
+            bench.command(eoa_mm=10000)
         bench.now_ms %= PERIOD              # the board's uptime is modulo 2^30 (firmware/train.py)
     assert bench.unit.rejected == 0 and bench.unit.mode == "run" and bench.unit.v_mmps > 300
     assert bench.last_report()["t_ms"] < 5000 and bench.last_report()["seq"] < 100

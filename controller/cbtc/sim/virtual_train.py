@@ -32,6 +32,9 @@ class VirtualTrain:
         self.motor = SimMotor()
         self._key = key
         self._config = profile.obu_config()
+        # the board refuses an end of authority further ahead than its line allows: the layout's length, in odometer
+        # mm at a wheel that reads 10 % long
+        self._config["max_authority_mm"] = int(layout.length_m * 1100.0)
         self._config.update(obu_overrides or {})
         self._ranging = ranging
         self.boots = 0
