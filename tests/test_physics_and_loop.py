@@ -108,7 +108,7 @@ def test_the_speed_loop_rides_the_service_curve_to_a_standstill_without_tripping
     train = VirtualTrain("A", key, load_layout("itb_square"), P, 0.0, broker.connect("train"),
                          np.random.default_rng(1))
     ctl = broker.connect("ctl")
-    state = {"seq": 0, "eoa_mm": 100_000}
+    state = {"seq": 0, "eoa_mm": 6_000}
     modes = []
 
     def answer(topic, payload):
