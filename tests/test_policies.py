@@ -9,7 +9,7 @@ import pytest
 from cbtc.authority.control_laws import departure_accelerations_mps2, departure_k_for
 from cbtc.authority.fixed_block import FixedBlockPolicy
 from cbtc.authority.moving_block import MovingBlockPolicy
-from cbtc.authority.rules import AuthorityParams, checked_gap_m, moving_block_distance_m
+from cbtc.authority.rules import AuthorityParams, checked_gap_m, moving_block_distance_m, scale_trusted
 from cbtc.authority.values import Authority, Situation, TrainPicture
 from cbtc.layout_files import load_layout
 from cbtc.railway.train_profile import TrainProfile
@@ -86,3 +86,8 @@ def test_fixed_block_names_the_occupied_block_or_the_train_in_its_own_block():
     spans = (("B", 0.5 * size_m, 0.5 * size_m - 0.3), ("A", 0.95 * size_m + 0.3, 0.95 * size_m))
     auth = policy.authority(Situation(LAYOUT, 10.0, 0.05, own, spans=spans))
     assert auth.reason == "train A in its own block" and auth.distance_m < 0
+
+
+def test_an_encoder_scale_is_trusted_only_within_the_band_a_wheel_can_have():
+    assert scale_trusted(1.02, 0.5, 2.0) and scale_trusted(0.5, 0.5, 2.0)
+    assert not any(scale_trusted(x, 0.5, 2.0) for x in (-0.4, 0.0, 0.49, 2.01, float("nan"), float("inf")))
