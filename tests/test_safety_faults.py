@@ -189,3 +189,13 @@ def test_an_encoder_scale_no_wheel_can_have_gives_no_authority_and_the_train_sto
     run_to(sim, 12.0)
     assert sim.trains[1].v_mps == 0.0 and sim.trains[0].v_mps > 0.3
     assert sim.recorder.collisions == [0, 0] and sim.recorder.overruns == [0, 0]
+
+
+def test_a_stop_list_of_one_station_dwells_once_a_lap_and_leaves_it(square):
+    """One train, one station in its list: it dwells there, leaves, and dwells again only a lap later; it never counts
+    its own departure as an overrun."""
+    sim = Simulation(ScenarioConfig(layout=square, seed=1, duration_s=60.0, trains=[TrainSpec("A", 0.0, ("A",))]))
+    sim.run()
+    state = sim.zc.trains["A"]
+    laps = sim.recorder.laps(0)
+    assert laps >= 2 and laps <= state.dwells <= laps + 1 and state.stop_overruns == 0

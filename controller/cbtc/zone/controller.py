@@ -62,6 +62,7 @@ class TrainState:
         self.report_t_s = None       # controller time at which the board sampled it
         self.boots = BootTracker()   # which reports move the picture forward; has the board answered us
         self.next_stop = None        # station name or None
+        self.leaving = None          # the station whose dwell just ended, until the train is past it
         self.dwell_until_s = None
         self.dwells = 0
         self.limit_s = None          # current authority limit along the track (m), for supervision
@@ -421,9 +422,16 @@ class ZoneController:
             if now_s >= state.dwell_until_s:
                 state.dwell_until_s = None
                 state.dwells += 1
+                state.leaving = station.name
                 state.next_stop = self._next_station(station.s_m + 0.01, stops)
                 return None
             return to_stop_m
+        if state.leaving is not None:
+            # the station just left may be the next one too (a one-station list): no stop there, and no overrun,
+            # until the train is past it (its distance then runs the long way round)
+            if state.leaving == station.name and to_stop_m <= station.window_m:
+                return None
+            state.leaving = None
         if standing and abs(to_stop_m) <= station.window_m:
             low, high = state.setup.dwell_s
             state.dwell_until_s = now_s + self._rng.uniform(low, high)
