@@ -148,6 +148,10 @@ class OnboardUnit:
         self._tags = []
         self.faults = []
         self.link_ok = True
+        # a train braked to a standstill that the one-channel encoder sees move rolls (back on a slope, pushed, or
+        # sliding on): the direction is unknown, so the report says so (`roll`) and the controller does not take it
+        # as travel
+        self._rolled = False
 
     # --- commands ------------------------------------------------------------------------------------------
 
@@ -248,6 +252,8 @@ class OnboardUnit:
             odo_mm = count * 1000 // self.cfg["counts_per_m"]
             if odo_mm != self.odo_mm:
                 self._last_move_ms = now_ms
+                if self.duty_pct == 0 and self.v_ref_mmps <= 0:   # braked to a standstill (or tripped) since the
+                    self._rolled = True                            # last pass: not travel the board drove
             self.odo_mm = odo_mm
         except Exception as exc:
             self._sensor_failed("encoder", exc)
@@ -489,6 +495,9 @@ class OnboardUnit:
             faults.append("broker_lost")
         if self.guard_on:
             faults.append("guard")
+        if self._rolled:
+            faults.append("roll")
+            self._rolled = False
         self.faults = faults
         seq = self.seq
         slot = seq % _HISTORY

@@ -9,7 +9,13 @@ import pytest
 from cbtc.authority.control_laws import departure_accelerations_mps2, departure_k_for
 from cbtc.authority.fixed_block import FixedBlockPolicy
 from cbtc.authority.moving_block import MovingBlockPolicy
-from cbtc.authority.rules import AuthorityParams, checked_gap_m, moving_block_distance_m, scale_trusted
+from cbtc.authority.rules import (
+    AuthorityParams,
+    checked_gap_m,
+    moving_block_distance_m,
+    rollback_allowance_m,
+    scale_trusted,
+)
 from cbtc.authority.values import Authority, Situation, TrainPicture
 from cbtc.layout_files import load_layout
 from cbtc.railway.train_profile import TrainProfile
@@ -30,13 +36,47 @@ def test_moving_block_runs_to_the_leaders_tail_less_margin_sigmas_and_the_rollba
     before = copy.deepcopy(policy.__dict__)
     auth = policy.authority(sit)
     gap_m = 3.0 - PROFILE.length_m - 1.0
-    assert auth.distance_m == pytest.approx(moving_block_distance_m(gap_m, 0.01, 0.01, params, 0.5))
+    assert auth.distance_m == pytest.approx(moving_block_distance_m(gap_m, 0.01, 0.01, params, 0.5, 0.3,
+                                                                    PROFILE.beta_e_mps2))
     assert auth.reason == "train A's tail" and auth.mode == "free" and auth.leader_data_t_s == 9.5
     assert auth.gap_est_m == pytest.approx(gap_m) and auth.gap_alarm is None
     assert policy.__dict__ == before                      # the policy keeps nothing of the train
     assert policy.authority(sit) == auth                  # and the same values give the same authority
     with pytest.raises(dataclasses.FrozenInstanceError):
         auth.distance_m = 99.0
+
+
+def test_the_authority_runs_from_the_front_most_head_to_the_rear_most_tail():
+    """While a train's sensors disagree its estimate reaches further (ahead_m, behind_m): taken off in full."""
+    policy = MovingBlockPolicy(takagi=False)
+    plain = policy.authority(Situation(LAYOUT, 10.0, 0.05, picture("B", 1.0), picture("A", 3.0)))
+    wide = policy.authority(Situation(LAYOUT, 10.0, 0.05, dataclasses.replace(picture("B", 1.0), ahead_m=0.2),
+                                      dataclasses.replace(picture("A", 3.0), behind_m=0.3)))
+    assert wide.distance_m == pytest.approx(plain.distance_m - 0.5)
+    alone = policy.authority(Situation(LAYOUT, 10.0, 0.05, dataclasses.replace(picture("A", 1.0), ahead_m=0.2,
+                                                                               behind_m=0.1)))
+    assert alone.distance_m == pytest.approx(
+        moving_block_distance_m(LAYOUT.length_m - PROFILE.length_m - 0.3, 0.01, 0.0, AuthorityParams()))
+
+
+def test_a_leader_may_roll_back_once_stopped_and_the_allowance_grows_smoothly_as_it_slows():
+    """Standing: it may roll back at rollback_mps over its data's age and the command's time to live. Moving, it
+    must stop first (at best at its emergency rate), going forward meanwhile: above about 0.3 m/s nothing is left, and
+    behind a leader braking to a stand the end of authority steps back by no more than 2 mm (no trip for its
+    follower; a step of the whole allowance, 4 cm, tripped 24 followers in a 60 s run of 5 trains)."""
+    p = AuthorityParams()
+    beta_e = PROFILE.beta_e_mps2
+    assert rollback_allowance_m(0.05, p, 0.0, beta_e) == pytest.approx(p.rollback_mps * (0.05 + p.ttl_s))
+    assert rollback_allowance_m(0.05, p, 0.35, beta_e) == 0.0
+    assert rollback_allowance_m(2.0, p, 0.35, beta_e) == pytest.approx(rollback_allowance_m(2.0, p))   # stale
+    s_m, v_mps, dt_s, ends = 0.0, 0.5, 0.01, []
+    while v_mps > 0.0:                                   # the leader brakes at its service rate to a stand
+        ends.append(s_m - rollback_allowance_m(0.05, p, v_mps, beta_e))
+        s_m += v_mps * dt_s
+        v_mps = max(0.0, v_mps - PROFILE.beta_s_mps2 * dt_s)
+    ends.append(s_m - rollback_allowance_m(0.05, p, 0.0, beta_e))
+    furthest = [max(ends[:k + 1]) for k in range(len(ends))]
+    assert max(f - e for f, e in zip(furthest, ends)) < 0.002   # below 0.07 m/s it grows a little faster: 1-2 mm
 
 
 def test_moving_block_alone_on_a_loop_is_limited_by_its_own_tail():

@@ -24,6 +24,7 @@ from cbtc.estimation.track_ukf import (
 )
 from cbtc.estimation.ukf_estimator import UkfEstimator
 from cbtc.layout_files import load_layout
+from cbtc.railway import balise
 from cbtc.railway.ips_frame import track_to_ips
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim.drivers import SimEncoder, SimIps, SimRfid
@@ -253,8 +254,11 @@ def test_dropout_predicts_and_uncertainty_grows(loop):
     assert abs(err) < 3.0 * later.sigma_s_m
 
 
-def test_train_moved_by_hand_is_found_again(loop):
-    """A train lifted and set down 1.2 m further on: every fix fails the gate until the filter restarts from them."""
+def test_train_moved_by_hand_is_covered_until_a_balise_places_it(loop):
+    """A train lifted and set down 1.2 m further on: its wheel saw nothing, so the IPS disagrees with the filter, and
+    nothing but a balise can say which is right (multipath looks the same). While they disagree the estimate covers
+    both and the wheel's scale is held at the lowest a wheel can read; a balise read that agrees with the IPS places
+    the train there."""
     profile = TrainProfile().with_changes(ips_outlier=0.0, rfid_miss=0.0)
     reports, truth = synthetic_run(loop, profile, seed=10, duration_s=30.0, target=lambda t_s: 0.3)
     est = UkfEstimator(loop, profile)
@@ -269,10 +273,56 @@ def test_train_moved_by_hand_is_found_again(loop):
             xi, yi = track_to_ips(x, y, loop.ips)
             r["ips"] = [t_ms, int(round(xi * 1000)), int(round(yi * 1000))]
         moved.append(r)
-    feed(est, moved)
-    t_s = controller_s(reports[-1]["t_ms"])
-    assert est.counters()["relocations"] == 1
-    assert abs(along_error_m(loop, est.estimate(t_s).s_m, truth[-1, 1] + 1.2)) < 0.03
+    feed(est, moved[:-1])
+    t_s = controller_s(moved[-2]["t_ms"])
+    now = est.estimate(t_s)
+    s_true = truth[round(t_s * 1000) // LOOP_MS, 1] + 1.2
+    assert est.counters()["relocations"] == 0 and est.counters()["disagreeing"]
+    assert est.counters()["disagreements"] == 1
+    assert along_error_m(loop, now.s_m, s_true) < -1.1                       # the filter keeps its wheel's position
+    assert now.ahead_m >= -along_error_m(loop, now.s_m, s_true) and now.behind_m == 0.0   # and covers the IPS's
+    assert est.odometer_per_m_low(3.0) == 0.5
+    # a balise (its position in its telegram) read where the IPS puts the train
+    last = moved[-1]
+    read_s = truth[round(controller_s(last["t_ms"]) * 1000) // LOOP_MS, 1] + 1.2 + profile.rfid_range_m
+    data = balise.image(77, float(loop.wrap(read_s))).hex()
+    feed(est, [dict(last, tags=[["0a0b0c0d", last["odo_mm"], last["t_ms"], data]])])
+    t_s = controller_s(last["t_ms"])
+    assert est.counters()["relocations"] == 1 and not est.counters()["disagreeing"]
+    placed = est.estimate(t_s)
+    assert abs(along_error_m(loop, placed.s_m, truth[round(t_s * 1000) // LOOP_MS, 1] + 1.2)) < 0.03
+    assert placed.ahead_m == placed.behind_m == 0.0
+
+
+def test_ips_offset_is_covered_and_never_believed(loop):
+    """Multipath puts every fix 0.5 m behind the train for 4 s: the filter keeps the wheel's position (within 3 cm or
+    3 sigma of the truth throughout), the estimate covers the fixes' story while it lasts, and all is as before once
+    it ends."""
+    profile = TrainProfile().with_changes(ips_outlier=0.0, rfid_miss=0.0)
+    reports, truth = synthetic_run(loop, profile, seed=12, duration_s=30.0, target=lambda t_s: 0.3)
+    est = UkfEstimator(loop, profile)
+    off = []
+    for k, r in enumerate(reports):
+        if 150 <= k < 190 and r["ips"] is not None:
+            t_ms, _x, _y = r["ips"]
+            s_off = truth[round(controller_s(t_ms - 60) * 1000) // LOOP_MS, 1] - 0.5
+            xi, yi = track_to_ips(*(float(c) for c in loop.xy(s_off)), loop.ips)
+            r = dict(r, ips=[t_ms, int(round(xi * 1000)), int(round(yi * 1000))])
+        off.append(r)
+    widest = 0.0
+    clock = BoardClock()
+    for r in off:
+        feed(est, [r], clock)
+        t_s = controller_s(r["t_ms"])
+        now = est.estimate(t_s)
+        if now is None:
+            continue
+        assert abs(along_error_m(loop, now.s_m, truth[round(t_s * 1000) // LOOP_MS, 1])) < max(0.03, 3 * now.sigma_s_m)
+        widest = max(widest, now.behind_m)
+        assert now.ahead_m == 0.0
+    assert 0.45 < widest < 0.8
+    assert est.counters()["disagreements"] >= 1 and not est.counters()["disagreeing"]
+    assert est.estimate(controller_s(off[-1]["t_ms"])).behind_m == 0.0
 
 
 # --- time: late and reordered data ------------------------------------------------------------------------------------

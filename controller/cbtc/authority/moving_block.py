@@ -1,8 +1,9 @@
 """The moving-block authority policy: how far each train may go, and how it follows (Takagi control).
 
 Authority: the train ahead's tail as last estimated (not extrapolated: brick wall), less S_M and k sigma of both
-estimates, less a rollback allowance that grows with the age of the leader's data (stale data shrinks the
-authority: cbtc.authority). Control on top of it (paper eqs. 24-26, cbtc.authority.control_laws):
+estimates, less what the leader may have rolled back since (it may stop and roll before the command expires;
+stale data shrinks the authority further: cbtc.authority.rules.rollback_allowance_m). Control on top of it (paper
+eqs. 24-26, cbtc.authority.control_laws):
 - synchronisation: once the usable gap has shrunk to the braking distance of the follower, its deceleration is
   commanded by eq. 24 from both speeds, which holds the gap at S_min(v_B) as both move;
 - departure: when a train stands at minimum distance behind a standing train, the pair departs together with
@@ -44,13 +45,16 @@ class MovingBlockPolicy:
         layout, own, leader = sit.layout, sit.own, sit.leader
         if leader is None:
             # alone: its own tail is the train ahead on a loop; the end of the track on an open line
-            gap_m = layout.length_m - own.profile.length_m if layout.closed else layout.length_m - own.s_m
+            gap_m = layout.length_m - own.profile.length_m - own.behind_m if layout.closed \
+                else layout.length_m - own.s_m
+            gap_m -= own.ahead_m
             why = {"reason": "own tail (alone on the loop)" if layout.closed else "end of the line",
                    "sigma_m": own.sigma_s_m}
             return moving_block_distance_m(gap_m, own.sigma_s_m, 0.0, self.params), None, why
-        tail_s = layout.wrap(leader.s_m - leader.profile.length_m)
-        gap_m = layout.ahead_m(own.s_m, tail_s)
-        if layout.closed and gap_m > layout.length_m - leader.profile.length_m:
+        # the train's front-most plausible head to the leader's rear-most plausible tail
+        tail_s = layout.wrap(leader.s_m - leader.profile.length_m - leader.behind_m)
+        gap_m = layout.ahead_m(layout.wrap(own.s_m + own.ahead_m), tail_s)
+        if layout.closed and gap_m > layout.length_m - leader.profile.length_m - leader.behind_m - own.ahead_m:
             gap_m -= layout.length_m  # the estimates overlap: negative gap, no authority
         sigma_m = combined_sigma_m(own.sigma_s_m, leader.sigma_s_m)
         # the follower's own ranging to the leader, when it has one, caps the gap and checks the picture
@@ -62,7 +66,8 @@ class MovingBlockPolicy:
         age_s = sit.now_s - leader.data_t_s
         why = {"reason": f"train {leader.train_id}'s tail" + (" (measured)" if used_m < gap_m else ""),
                "leader_data_t_s": leader.data_t_s, "sigma_m": sigma_m, "gap_est_m": gap_m, "gap_alarm": alarm}
-        return moving_block_distance_m(used_m, own.sigma_s_m, leader.sigma_s_m, self.params, age_s), leader.v_mps, why
+        return (moving_block_distance_m(used_m, own.sigma_s_m, leader.sigma_s_m, self.params, age_s, leader.v_mps,
+                                        leader.profile.beta_e_mps2), leader.v_mps, why)
 
     def authority(self, sit: Situation) -> Authority:
         """The Authority of `sit.own`'s train behind `sit.leader` (None: alone)."""

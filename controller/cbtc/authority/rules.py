@@ -33,17 +33,30 @@ def combined_sigma_m(sigma_follower_m: float, sigma_leader_m: float) -> float:
     return math.sqrt(sigma_follower_m ** 2 + sigma_leader_m ** 2)
 
 
-def rollback_allowance_m(leader_age_s: float, p: AuthorityParams) -> float:
-    """How far (m) behind its last-seen position a train whose data is `leader_age_s` old may be."""
-    return p.rollback_mps * max(0.0, leader_age_s - p.stale_after_s)
+def rollback_allowance_m(leader_age_s: float, p: AuthorityParams, leader_v_mps: float = None,
+                         leader_beta_e_mps2: float = None) -> float:
+    """How far (m) behind its last-seen position a train whose data is `leader_age_s` old may be. Any train may stop
+    and roll back (a slope its brakes do not hold) before the follower's command expires, over the data's age plus
+    the command's time to live: moving at `leader_v_mps` when last seen, it first stops (at best at its emergency
+    rate), and the way it still goes forward meanwhile is taken off. So the allowance grows smoothly as a train
+    slows, and an end of authority behind it never steps back. Once its data is stale it may also have been moved by
+    hand at `rollback_mps` (None for the speed: that rule alone)."""
+    stale_m = p.rollback_mps * max(0.0, leader_age_s - p.stale_after_s)
+    if leader_v_mps is None:
+        return stale_m
+    v_mps = max(0.0, leader_v_mps)
+    roll_s = max(0.0, leader_age_s) + p.ttl_s - v_mps / leader_beta_e_mps2
+    roll_m = p.rollback_mps * roll_s - v_mps * v_mps / (2.0 * leader_beta_e_mps2) if roll_s > 0.0 else 0.0
+    return max(stale_m, roll_m)
 
 
 def moving_block_distance_m(gap_est_m: float, sigma_follower_m: float, sigma_leader_m: float,
-                            p: AuthorityParams, leader_age_s: float = 0.0) -> float:
+                            p: AuthorityParams, leader_age_s: float = 0.0, leader_v_mps: float = None,
+                            leader_beta_e_mps2: float = None) -> float:
     """Distance (m) the follower's head may still travel, from the estimated gap to the leader's tail as last seen,
-    whose data is `leader_age_s` old at the time the authority is computed."""
+    whose data is `leader_age_s` old at the time the authority is computed (rollback_allowance_m)."""
     return (gap_est_m - p.margin_m - p.k_sigma * combined_sigma_m(sigma_follower_m, sigma_leader_m)
-            - rollback_allowance_m(leader_age_s, p))
+            - rollback_allowance_m(leader_age_s, p, leader_v_mps, leader_beta_e_mps2))
 
 
 def checked_gap_m(gap_est_m: float, sigma_m: float, measured, now_s: float, p: AuthorityParams,

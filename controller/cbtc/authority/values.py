@@ -16,6 +16,8 @@ class TrainPicture:
     v_mps: float
     data_t_s: float       # controller time of the report the estimate rests on (s)
     profile: TrainProfile
+    ahead_m: float = 0.0  # beyond sigma, how much further ahead (behind) the train may be while its sensors disagree
+    behind_m: float = 0.0  # (m, >= 0): the front-most head is s_m + ahead_m, the rear-most tail less behind_m
 
 
 @dataclass(frozen=True)

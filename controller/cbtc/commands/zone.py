@@ -75,7 +75,10 @@ def _print_status(zc, bus, now_s):
     parts = []
     for train_id, row in zc.snapshot(now_s).items():
         faults = ",".join(row["faults"]) or "-"
-        parts.append(f"{train_id} s={fmt(row['s_m'])} v={fmt(row['v_mps'])} lim={fmt(row['limit_s_m'])} "
+        spread = ""
+        if row["ahead_m"] or row["behind_m"]:   # its sensors disagree: the authority covers both stories
+            spread = f" sensors disagree (-{row['behind_m']:.2f}/+{row['ahead_m']:.2f} m, {row['gated_fixes']} gated)"
+        parts.append(f"{train_id} s={fmt(row['s_m'])}{spread} v={fmt(row['v_mps'])} lim={fmt(row['limit_s_m'])} "
                      f"[{row['limited_by'] or '-'}] "
                      f"{row['mode'] or 'silent'} next={row['next_stop'] or '-'} flt={faults}")
     link = "up" if bus.connected else "DOWN"

@@ -10,7 +10,9 @@ class Estimate:
     """A train's head position and speed at controller time `t_s`, with 1-sigma uncertainties.
 
     `s_m` is wrapped onto the layout; `data_t_s` is the controller time of the newest measurement behind it,
-    so `t_s - data_t_s` is the age of the data.
+    so `t_s - data_t_s` is the age of the data. `ahead_m` and `behind_m` (>= 0) say how much further ahead of or
+    behind `s_m` the train may plausibly be beyond its sigma, while its sensors disagree (an IPS run that the filter
+    gates: multipath on one side, wheel slip on the other); the authority takes them off in full.
     """
 
     s_m: float
@@ -19,6 +21,8 @@ class Estimate:
     sigma_v_mps: float
     t_s: float
     data_t_s: float
+    ahead_m: float = 0.0
+    behind_m: float = 0.0
 
     @property
     def age_s(self) -> float:

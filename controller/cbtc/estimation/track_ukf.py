@@ -320,6 +320,11 @@ class TrackUkf:
         self.ukf.x[S] = s_m
         self._settle()
 
+    def widen_position(self, sigma_m: float) -> None:
+        """Add `sigma_m` (m) of independent uncertainty to the position: a motion of known length and unknown sign."""
+        self.ukf.P[S, S] += sigma_m ** 2
+        self._settle()
+
     def _gated_update(self, z, R, gate, hx, **hx_args) -> bool:
         self._draw_points()
         x_before, P_before = self.ukf.x.copy(), self.ukf.P.copy()

@@ -10,9 +10,12 @@ time, so a better clock offset learnt later never reorders anything. Measurement
 time order with the filter state after each; one that lands before newer ones (a late IPS fix, a report overtaken
 in transit) is inserted at its time and the newer ones are re-run from the state just before it. Dropouts need
 nothing: the next measurement predicts over the gap. A train is placed by its first balise read, or by the IPS
-only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.estimation.fix_consensus). A run of
-`relocate_after` IPS fixes that all fail the gate means the train is not where the filter thinks (lifted and put
-back, a long slip): the position restarts where the fixes of that run agree.
+only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.estimation.fix_consensus).
+
+Gated IPS fixes that agree among themselves (`locate_fixes` of the last `relocate_after`) mean the sensors disagree:
+either the IPS is off (multipath) or the wheel is (slip, spin, a train lifted and put back), and nothing but a balise
+can tell which. Until they agree again the estimate covers both (`Estimate.ahead_m` / `behind_m`), and the filter
+keeps its own position; a balise read that the filter gates but that agrees with the fixes moves the position there.
 """
 
 import bisect
@@ -33,7 +36,9 @@ from cbtc.estimation.track_ukf import (
     V,
     initial_covariance,
 )
+from cbtc.protocol import wire
 from cbtc.railway.balise import BaliseReader
+from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
 
 
@@ -49,7 +54,7 @@ class UkfParams:
     tag_sigma_m: float = 0.002        # tag placement and reader-field spread (1-sigma)
     rfid_poll_s: float = 0.02         # the onboard loop polls the reader once per period
     gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
-    relocate_after: int = 8           # this many consecutive gated IPS fixes restart the position
+    relocate_after: int = 8           # gated IPS fixes looked at together: where enough agree, the sensors disagree
     locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
     history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
 
@@ -89,7 +94,8 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
     )
 
 
-_KIND_RANK = {"odo": 0, "tag": 1, "ips": 2, "range": 3}
+_WHEEL_LOWEST = wire.ODO_MM_PER_M_MIN / 1000.0   # odometer m per true m: the least a command may state
+_KIND_RANK = {"roll": 0, "odo": 1, "tag": 2, "ips": 3, "range": 4}
 
 
 class _Event:
@@ -100,7 +106,7 @@ class _Event:
 
     def __init__(self, t_s, kind, data):
         self.t_s = t_s
-        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m);
+        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m); "roll": (step_m,);
         #                       "range": (radio_x_m, radio_y_m, range_m, sigma_m)
         self.data = data
         self.sort_key = (t_s, _KIND_RANK[kind], data)
@@ -109,9 +115,11 @@ class _Event:
 class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
-    __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations")
+    __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
+                 "disagree", "disagreements")
 
-    def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0):
+    def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
+                 disagree=None, disagreements=0):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -119,10 +127,13 @@ class _State:
         self.tags_rejected = tags_rejected
         self.gated = gated             # anchors (fix s - odometer, m) of the current run of gated IPS fixes
         self.relocations = relocations
+        self.disagree = disagree       # (low_m, high_m, anchor_m, sigma_m): where the agreeing gated fixes put the
+        #                                train, as offsets from the filter's position, and their anchor; None: agree
+        self.disagreements = disagreements   # runs of disagreement begun
 
     def copy_with(self, snap):
         return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
-                      self.relocations)
+                      self.relocations, self.disagree, self.disagreements)
 
 
 class UkfEstimator:
@@ -144,6 +155,8 @@ class UkfEstimator:
         self._base = None            # state before _events[0]
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
+        self._board_odo_m = None     # the newest report's odometer, as the board counts it
+        self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
 
     # --- counters of the measurements in use --------------------------------------------------------------------------
 
@@ -172,8 +185,11 @@ class UkfEstimator:
     def odometer_per_m_low(self, k_sigma: float) -> float:
         """A lower bound of the encoder's odometer metres per true metre, 1 + scale error - k_sigma sigma: the
         controller turns a distance along the track into odometer units with it, so a train whose encoder reads short
-        still stops within its authority. 1 - k_sigma * the prior sigma while unlocated or not estimated."""
+        still stops within its authority. 1 - k_sigma * the prior sigma while unlocated or not estimated; the lowest
+        a wheel can read (the band a command may state) while the IPS puts the train ahead of it."""
         state = self._newest
+        if state is not None and state.disagree is not None and state.disagree[1] > 0.0 and k_sigma > 0.0:
+            return _WHEEL_LOWEST   # the IPS puts the train ahead of its wheel: the wheel may read short, by any amount
         if state is None or len(state.snap[1]) <= K:
             return 1.0 - k_sigma * self.params.scale_sigma
         _t, x, P = state.snap
@@ -195,6 +211,7 @@ class UkfEstimator:
         state = self._newest or _State(None)
         return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
+                "disagreements": state.disagreements, "disagreeing": state.disagree is not None,
                 "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
                 **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
@@ -204,12 +221,23 @@ class UkfEstimator:
         """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
         self._clock = board_clock
         t_s = board_clock.board_s(report["t_ms"])   # the board's time line, unwrapped
-        new = [_Event(t_s, "odo", (report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0))]
+        # a step the board counted while braked to a standstill (`roll`) has no sign: it is taken out of the odometer
+        # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead
+        odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
+        rolled_m = 0.0
+        if "roll" in report.get("flt", ()) and self._board_odo_m is not None:
+            rolled_m = max(0.0, odo_m - self._board_odo_m)
+            self._rolled_m += rolled_m
+            v_mps = 0.0
+        self._board_odo_m = odo_m
+        new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
+        if rolled_m:
+            new.append(_Event(t_s, "roll", (rolled_m,)))
         for entry in report["tags"]:
             tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
             if tag_s_m is None:
                 continue
-            new.append(_Event(board_clock.board_s(entry[2]), "tag", (tag_s_m, entry[1] / 1000.0)))
+            new.append(_Event(board_clock.board_s(entry[2]), "tag", (tag_s_m, entry[1] / 1000.0 - self._rolled_m)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
@@ -266,28 +294,61 @@ class UkfEstimator:
         new = state.copy_with(None)
         if event.kind == "odo":
             f.update_odometer(event.data[0])
+        elif event.kind == "roll":
+            f.widen_position(event.data[0])
         elif event.kind == "tag":
             if f.update_tag(*event.data):
                 new.tags_used += 1
+            elif state.disagree is not None and self._arbitrate(f, state.disagree, *event.data):
+                new.tags_used += 1
+                new.relocations += 1
+                new.gated, new.disagree = (), None
             else:
                 new.tags_rejected += 1
         elif event.kind == "range":
             f.update_range(*event.data)
         elif f.update_ips(*event.data):
             new.ips_used += 1
-            new.gated = ()
+            new.gated, new.disagree = (), None
         else:
             new.ips_rejected += 1
-            d_m = float(f.ukf.x[D])
-            new.gated = (state.gated + (self.layout.project(*event.data) - d_m,))[-self.params.relocate_after:]
-            if len(new.gated) >= self.params.relocate_after:
-                placed = self._agreeing(new.gated)
-                if placed is not None:
-                    f.relocate(self.layout.wrap(placed[0] + d_m), placed[1])
-                    new.relocations += 1
-                    new.gated = ()
+            new.gated = (state.gated + (self.layout.project(*event.data) - float(f.ukf.x[D]),))[
+                -self.params.relocate_after:]
+            new.disagree = self._disagreement(f, new.gated) or state.disagree
+            if new.disagree is not None and state.disagree is None:
+                new.disagreements += 1
         new.snap = f.snapshot()
         return new
+
+    def _disagreement(self, f, anchors_m):
+        """(low_m, high_m, anchor_m, sigma_m) where `locate_fixes` of the gated IPS `anchors_m` agree: the span of
+        their offsets from the filter's position, widened by three sigma of their consensus; None when too few
+        agree."""
+        placed = self._agreeing(anchors_m)
+        if placed is None:
+            return None
+        anchor_m, sigma_m = placed
+        ring_m = self.layout.loop_length_m
+        gate_m = 3.0 * math.sqrt(2.0) * self.profile.ips_sigma_m
+        s_m, d_m = float(f.ukf.x[S]), float(f.ukf.x[D])
+        offsets = [circular_offset_m(a + d_m, s_m, ring_m) for a in anchors_m
+                   if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
+        return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
+
+    def _arbitrate(self, f, disagree, tag_s_m, d_m):
+        """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
+        three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
+        _low, _high, anchor_m, sigma_m = disagree
+        late_m = abs(float(f.ukf.x[V])) * self.noise.rfid_poll_s
+        read_s_m = tag_s_m - self.noise.rfid_range_m + 0.5 * late_m
+        tag_sigma_m = math.sqrt(self.noise.tag_var_m2 + late_m ** 2 / 12.0)
+        ring_m = self.layout.loop_length_m
+        if abs(circular_offset_m(anchor_m + d_m, read_s_m, ring_m)) > 3.0 * math.hypot(sigma_m, tag_sigma_m):
+            return False
+        f.relocate(self.layout.wrap(read_s_m + float(f.ukf.x[D]) - d_m), tag_sigma_m)
+        if f.n > K:   # the wheel was wrong: its scale is learnt afresh from the fixes that follow
+            f.ukf.P[K, K] = max(float(f.ukf.P[K, K]), (3.0 * self.params.scale_sigma) ** 2)
+        return True
 
     def _load(self, state):
         if self._filter is None:
@@ -309,7 +370,7 @@ class UkfEstimator:
     def _locate(self, event):
         """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
         ranges alone cannot. Called only while unlocated, so every IPS event up to this one is one of those fixes."""
-        if event.kind in ("odo", "range"):
+        if event.kind in ("odo", "range", "roll"):
             return None
         odometer = self._odometer_at(event.t_s)
         if odometer is None:   # no encoder report kept yet to place it against
@@ -384,8 +445,11 @@ class UkfEstimator:
         adt = abs(dt_s)
         var_s = P[S, S] + 2.0 * dt_s * P[S, V] + dt_s * dt_s * P[V, V] + q * adt ** 3 / 3.0
         var_v = P[V, V] + q * adt
+        ahead_m = behind_m = 0.0
+        if state.disagree is not None:
+            ahead_m, behind_m = max(0.0, state.disagree[1]), max(0.0, -state.disagree[0])
         est = Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
-                       data_t_s=newest_t_s + offset_s)
+                       data_t_s=newest_t_s + offset_s, ahead_m=ahead_m, behind_m=behind_m)
         self._estimate_memo = (state, now_s, offset_s, newest_t_s, est)
         return est

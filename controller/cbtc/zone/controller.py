@@ -347,7 +347,8 @@ class ZoneController:
     @staticmethod
     def _picture(state):
         est = state.estimator.estimate(state.report_t_s)
-        return TrainPicture(state.train_id, est.s_m, est.sigma_s_m, est.v_mps, state.report_t_s, state.setup.profile)
+        return TrainPicture(state.train_id, est.s_m, est.sigma_s_m, est.v_mps, state.report_t_s, state.setup.profile,
+                            est.ahead_m, est.behind_m)
 
     def _situation(self, state, leader, now_s):
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
@@ -369,8 +370,8 @@ class ZoneController:
                 continue
             est = st.estimator.estimate(st.report_t_s)
             widen = self.params.k_sigma * est.sigma_s_m
-            spans.append((st.train_id, self.layout.wrap(est.s_m + widen),
-                          self.layout.wrap(est.s_m - st.setup.profile.length_m - widen)))
+            spans.append((st.train_id, self.layout.wrap(est.s_m + widen + est.ahead_m),
+                          self.layout.wrap(est.s_m - st.setup.profile.length_m - widen - est.behind_m)))
         return tuple(spans)
 
     def _took(self, state, auth):
@@ -565,6 +566,9 @@ class ZoneController:
                 "faults": [] if st.report is None else list(st.report["flt"]),
                 "next_stop": st.next_stop,
                 "reports_rejected": st.reports_rejected,
+                "ahead_m": None if est is None else round(est.ahead_m, 4),
+                "behind_m": None if est is None else round(est.behind_m, 4),
+                "gated_fixes": st.estimator.rejected_ips,
                 "gap_measured_m": None if st.rng_gap is None else round(st.rng_gap[1], 4),
                 "gap_disagrees": st.gap_alarm,
             }
