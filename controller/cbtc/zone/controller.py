@@ -480,10 +480,13 @@ class ZoneController:
         state.safe_m = safe_m
         if safe_m is None:
             # no picture of every train: stop now at service rate; the authority never extends. Its end is the
-            # braking distance from line speed or the reported speed if higher (a report may lie low: an end set
-            # inside the real braking distance would trip the train and slide it past), the stop is the speed cap 0
-            v_mps = max(state.setup.profile.v_max_mps, report["v_mmps"] / 1000.0)
-            brake_m = v_mps * state.setup.profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
+            # braking distance from the highest speed the train can have reached since its report (the report's
+            # speed lags half a speed window; the train may have accelerated since): a standing train is held where
+            # it stands, not granted room it may not have. The stop is the speed cap 0
+            profile = state.setup.profile
+            lag_s = max(0.0, now_s - state.report_t_s) + obu.DEFAULTS["speed_window_ms"] / 1000.0 + profile.reaction_s
+            v_mps = min(profile.v_noload_mps, report["v_mmps"] / 1000.0 + profile.accel_max_mps2 * lag_s)
+            brake_m = v_mps * profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
             eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
         else:
             eoa_mm = report["odo_mm"] + int(safe_m * scale_low * 1000.0)   # metres along the track into odometer mm
