@@ -12,9 +12,12 @@ from cbtc.authority.moving_block import MovingBlockPolicy
 from cbtc.authority.rules import (
     AuthorityParams,
     checked_gap_m,
+    following_reach_m,
+    horizon_m,
     moving_block_distance_m,
     rollback_allowance_m,
     scale_trusted,
+    within_horizon,
 )
 from cbtc.authority.values import Authority, Situation, TrainPicture
 from cbtc.layout_files import load_layout
@@ -131,3 +134,15 @@ def test_fixed_block_names_the_occupied_block_or_the_train_in_its_own_block():
 def test_an_encoder_scale_is_trusted_only_within_the_band_a_wheel_can_have():
     assert scale_trusted(1.02, 0.5, 2.0) and scale_trusted(0.5, 0.5, 2.0)
     assert not any(scale_trusted(x, 0.5, 2.0) for x in (-0.4, 0.0, 0.49, 2.01, float("nan"), float("inf")))
+
+
+def test_an_authority_reaches_no_further_than_the_horizon_and_says_so():
+    params = AuthorityParams()
+    reach_m = horizon_m(PROFILE, params)
+    assert reach_m == pytest.approx(following_reach_m(PROFILE) + PROFILE.v_max_mps * params.ttl_s)
+    short = Authority(0.3, PROFILE.v_max_mps, 0.5, 1.0, "free", "train A's tail")
+    assert within_horizon(short, PROFILE, params) is short
+    long = dataclasses.replace(short, distance_m=4.0)
+    cut = within_horizon(long, PROFILE, params)
+    assert cut.distance_m == reach_m and cut.reason == "horizon (train A's tail further)"
+    assert long.distance_m == 4.0

@@ -136,7 +136,7 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
         return (reports[-1]["t_ms"] - reports[0]["t_ms"]) / (reports[-1]["seq"] - reports[0]["seq"])
 
     sim.scheduler.run_until(4.0)
-    assert sim.zc.trains["B"].safe_m > 1.0, "B is still far behind A"
+    assert sim.zc.trains["B"].authority.reason.startswith("horizon"), "B is still far behind A"
     early = period_ms(0, 2.0, 4.0)
     sim.scheduler.run_until(30.0)
     assert sim.zc.trains["B"].safe_m < 0.2, "B has caught up and follows A"

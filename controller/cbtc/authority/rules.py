@@ -10,7 +10,7 @@ latency do not move it.
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from cbtc.railway.physics import braking_distance_m
 
@@ -92,6 +92,22 @@ def following_reach_m(profile) -> float:
     the reaction distance, and 5 cm. A train whose authority is shorter is held by the train ahead (it follows)."""
     v = profile.v_max_mps
     return braking_distance_m(v, profile.beta_s_mps2) + v * profile.reaction_s + 0.05
+
+
+def horizon_m(profile, p: AuthorityParams) -> float:
+    """The furthest (m) an end of authority is set ahead of a train: its following reach plus what it travels at line
+    speed over a command's time to live. A train running at line speed is never held by it (a fresh command comes
+    every report), while an odometer that starts to read short (a slipping wheel) can carry the train past its end by
+    a share of this at most, not of the whole way to the train ahead."""
+    return following_reach_m(profile) + profile.v_max_mps * p.ttl_s
+
+
+def within_horizon(auth, profile, p: AuthorityParams):
+    """`auth` (an Authority) cut to the train's horizon_m, its reason saying so; unchanged when it is within."""
+    reach_m = horizon_m(profile, p)
+    if auth.distance_m <= reach_m:
+        return auth
+    return replace(auth, distance_m=reach_m, reason=f"horizon ({auth.reason} further)")
 
 
 def minimum_gap_m(v_mps: float, beta_s_mps2: float, margin_m: float) -> float:

@@ -20,6 +20,7 @@ keeps its own position; a balise read that the filter gates but that agrees with
 
 import bisect
 import math
+import statistics
 from dataclasses import dataclass, fields
 
 from scipy.linalg.lapack import dpotrf
@@ -116,10 +117,10 @@ class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
-                 "disagree", "disagreements")
+                 "consensus", "innovations", "disagree", "disagreements")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
-                 disagree=None, disagreements=0):
+                 consensus=None, innovations=(), disagree=None, disagreements=0):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -127,13 +128,16 @@ class _State:
         self.tags_rejected = tags_rejected
         self.gated = gated             # anchors (fix s - odometer, m) of the current run of gated IPS fixes
         self.relocations = relocations
-        self.disagree = disagree       # (low_m, high_m, anchor_m, sigma_m): where the agreeing gated fixes put the
-        #                                train, as offsets from the filter's position, and their anchor; None: agree
+        self.consensus = consensus     # (low_m, high_m, anchor_m, sigma_m): where the agreeing gated fixes put the
+        #                                train, as offsets from the filter's position, and their anchor; or None
+        self.innovations = innovations  # along-track innovations (m) of the newest IPS fixes, gated or not
+        self.disagree = disagree       # (low_m, high_m): how far behind (<= 0) and ahead (>= 0) of the filter's
+        #                                position the IPS may put the train; None while they agree
         self.disagreements = disagreements   # runs of disagreement begun
 
     def copy_with(self, snap):
         return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
-                      self.relocations, self.disagree, self.disagreements)
+                      self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements)
 
 
 class UkfEstimator:
@@ -185,15 +189,19 @@ class UkfEstimator:
     def odometer_per_m_low(self, k_sigma: float) -> float:
         """A lower bound of the encoder's odometer metres per true metre, 1 + scale error - k_sigma sigma: the
         controller turns a distance along the track into odometer units with it, so a train whose encoder reads short
-        still stops within its authority. 1 - k_sigma * the prior sigma while unlocated or not estimated; the lowest
-        a wheel can read (the band a command may state) while the IPS puts the train ahead of it."""
+        still stops within its authority. A scale error learnt above k_sigma prior sigmas counts as that much (a wheel
+        that spun for a while reads true again when it grips); 1 - k_sigma * the prior sigma while unlocated or not
+        estimated; the lowest a wheel can read (the band a command may state) while the IPS puts the train ahead of
+        it."""
         state = self._newest
         if state is not None and state.disagree is not None and state.disagree[1] > 0.0 and k_sigma > 0.0:
             return _WHEEL_LOWEST   # the IPS puts the train ahead of its wheel: the wheel may read short, by any amount
         if state is None or len(state.snap[1]) <= K:
             return 1.0 - k_sigma * self.params.scale_sigma
         _t, x, P = state.snap
-        return 1.0 + float(x[K]) - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
+        # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
+        k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
+        return 1.0 + k_m - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
 
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
@@ -299,46 +307,66 @@ class UkfEstimator:
         elif event.kind == "tag":
             if f.update_tag(*event.data):
                 new.tags_used += 1
-            elif state.disagree is not None and self._arbitrate(f, state.disagree, *event.data):
+            elif state.consensus is not None and self._arbitrate(f, state.consensus, *event.data):
                 new.tags_used += 1
                 new.relocations += 1
-                new.gated, new.disagree = (), None
+                new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
             else:
                 new.tags_rejected += 1
         elif event.kind == "range":
             f.update_range(*event.data)
-        elif f.update_ips(*event.data):
-            new.ips_used += 1
-            new.gated, new.disagree = (), None
         else:
-            new.ips_rejected += 1
-            new.gated = (state.gated + (self.layout.project(*event.data) - float(f.ukf.x[D]),))[
+            fix_s_m = self.layout.project(*event.data)
+            s_m, d_m = float(f.ukf.x[S]), float(f.ukf.x[D])
+            new.innovations = (state.innovations + (circular_offset_m(fix_s_m, s_m, self.layout.loop_length_m),))[
                 -self.params.relocate_after:]
-            new.disagree = self._disagreement(f, new.gated) or state.disagree
+            if f.update_ips(*event.data):
+                new.ips_used += 1
+                new.gated, new.consensus = (), None
+            else:
+                new.ips_rejected += 1
+                new.gated = (state.gated + (fix_s_m - d_m,))[-self.params.relocate_after:]
+                new.consensus = self._consensus(s_m, d_m, new.gated) or state.consensus
+            new.disagree = self._disagreement(new.consensus, new.innovations)
             if new.disagree is not None and state.disagree is None:
                 new.disagreements += 1
         new.snap = f.snapshot()
         return new
 
-    def _disagreement(self, f, anchors_m):
+    def _disagreement(self, consensus, innovations):
+        """(low_m, high_m) that the IPS may put the train behind or ahead of the filter's position: from the gated
+        fixes that agree, and from a bias of the newest fixes, gated or not (their median, beyond 4 sigma of a
+        median); None when they agree with it."""
+        low = high = 0.0
+        if consensus is not None:
+            low, high = min(0.0, consensus[0]), max(0.0, consensus[1])
+        if len(innovations) >= self.params.relocate_after:
+            bias_m = statistics.median(innovations)
+            sigma_m = 1.25 * self.profile.ips_sigma_m / math.sqrt(len(innovations))   # of a median of normals
+            if abs(bias_m) > 4.0 * sigma_m:
+                low, high = min(low, bias_m - 3.0 * sigma_m), max(high, bias_m + 3.0 * sigma_m)
+        if low == high == 0.0:
+            return None
+        return low, high
+
+    def _consensus(self, s_m, d_m, anchors_m):
         """(low_m, high_m, anchor_m, sigma_m) where `locate_fixes` of the gated IPS `anchors_m` agree: the span of
-        their offsets from the filter's position, widened by three sigma of their consensus; None when too few
-        agree."""
+        their offsets from the filter's position `s_m` (odometer `d_m`), widened by three sigma of their consensus;
+        None when too few agree."""
         placed = self._agreeing(anchors_m)
         if placed is None:
             return None
         anchor_m, sigma_m = placed
         ring_m = self.layout.loop_length_m
         gate_m = 3.0 * math.sqrt(2.0) * self.profile.ips_sigma_m
-        s_m, d_m = float(f.ukf.x[S]), float(f.ukf.x[D])
         offsets = [circular_offset_m(a + d_m, s_m, ring_m) for a in anchors_m
                    if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
         return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
 
-    def _arbitrate(self, f, disagree, tag_s_m, d_m):
+    def _arbitrate(self, f, consensus, tag_s_m, d_m):
         """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
         three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
-        _low, _high, anchor_m, sigma_m = disagree
+        _low, _high, anchor_m, sigma_m = consensus
         late_m = abs(float(f.ukf.x[V])) * self.noise.rfid_poll_s
         read_s_m = tag_s_m - self.noise.rfid_range_m + 0.5 * late_m
         tag_sigma_m = math.sqrt(self.noise.tag_var_m2 + late_m ** 2 / 12.0)

@@ -21,7 +21,7 @@ import math
 import random
 from dataclasses import dataclass, field, replace
 
-from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m, scale_trusted
+from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m, scale_trusted, within_horizon
 from cbtc.authority.values import Situation, TrainPicture
 from cbtc.estimation.estimate import BoardClock
 from cbtc.firmware import obu
@@ -329,7 +329,7 @@ class ZoneController:
             if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
                 block_i, code = self.policy.code(sit)
                 sit = replace(sit, received_code=self.policy.codes.transmit(block_i, code))
-            auth = self.policy.authority(sit)
+            auth = within_horizon(self.policy.authority(sit), state.setup.profile, self.params)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
             stop_m = self._station_stop(state, now_s)
