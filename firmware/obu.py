@@ -183,6 +183,8 @@ class OnboardUnit:
             if age_ms > self.cfg["max_data_age_ms"]:
                 raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)"
                                      % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
+            if self.enc_fail_ms is not None and wire.wrap_diff(self._sent_t[slot], self.enc_fail_ms) <= 0:
+                raise wire.WireError("based on a report before the encoder failed")   # its odometer is lost
             if cmd["eoa_mm"] - self.odo_mm > self.cfg["max_authority_mm"]:   # no line is that long: a zone error
                 raise wire.WireError("eoa over max_authority_mm ahead")
         except wire.WireError as exc:
@@ -244,11 +246,14 @@ class OnboardUnit:
 
     def _sample(self, now_ms):
         # a failed sensor is counted and named, never allowed to stop the loop
-        count = self._ring_n[self._ring_i - 1]   # a failed encoder: as if no edge came
+        last = count = self._ring_n[self._ring_i - 1]   # a failed encoder: as if no edge came
         age_us = 0
         try:
             count = self.encoder.count()
             age_us = self.encoder.age_us   # 0 from an encoder that does not time its edges
+            if count < last and not getattr(self.encoder, "signed", False):
+                # one channel counts every edge up: a count that goes back is a glitch, and the odometer is lost
+                self._encoder_failed(now_ms, "count went back")
             odo_mm = count * 1000 // self.cfg["counts_per_m"]
             if odo_mm != self.odo_mm:
                 self._last_move_ms = now_ms
@@ -328,7 +333,7 @@ class OnboardUnit:
                 self._encoder_failed(now_ms, "no count for %d ms at %d mm/s" % (age_us // 1000, v0))
         if self._ref_mm * cfg["counts_per_m"] > cfg["enc_slack_mm"] * cfg["counts_per_m"] + _ENC_COUNTS * 1000:
             self._encoder_failed(now_ms, "no count in %d mm the train was driven" % self._ref_mm)
-        if v_mmps * 2 > cfg["v_noload_mmps"] * 3:
+        if abs(v_mmps) * 2 > cfg["v_noload_mmps"] * 3:
             self._encoder_failed(now_ms, "%d mm/s, faster than the motor drives" % v_mmps)
 
     def odo_scale(self):

@@ -16,7 +16,8 @@ from cbtc.cli import main
 from cbtc.experiments import campaign
 from cbtc.sim import faults
 
-SMALL = ["campaign", "--runs", "20", "--duration", "6", "--trains", "2", "--layouts", "itb_square"]
+RUNS = len(campaign.CLASSES)   # one run of each class
+SMALL = ["campaign", "--runs", str(RUNS), "--duration", "6", "--trains", "2", "--layouts", "itb_square"]
 
 
 def figures(capsys, argv):
@@ -69,11 +70,11 @@ def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, caps
     proc.send_signal(signal.SIGINT)
     _out, err = proc.communicate(timeout=30)
     kept = len(results.read_text().splitlines())
-    assert proc.returncode == 130 and "run the same command again" in err and 4 <= kept < 20
+    assert proc.returncode == 130 and "run the same command again" in err and 4 <= kept < RUNS
     with results.open("a") as fh:
         fh.write('{"command": "cbtc sim --lay')          # a line cut short by a kill: its run is made again
     status, first = figures(capsys, SMALL + ["--results", str(results)])
-    assert first["runs"] == 20 and first["runs_reused"] == kept and first["runs_made"] == 20 - kept
+    assert first["runs"] == RUNS and first["runs_reused"] == kept and first["runs_made"] == RUNS - kept
     status_again, again = figures(capsys, SMALL + ["--results", str(results)])
     assert again["runs_made"] == 0 and again["by_fault"] == first["by_fault"] and status_again == status
     # a run made by other code (a changed estimator, say) is made again, not reused
@@ -100,7 +101,7 @@ def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, caps
                                   dashboard_address=None) as cluster:
         status_dask, on_dask = figures(capsys, SMALL + ["--results", str(tmp_path / "dask.jsonl"),
                                                         "--scheduler", cluster.scheduler_address])
-    assert on_dask["runs_made"] == 20 and status_dask == status
+    assert on_dask["runs_made"] == RUNS and status_dask == status
     assert on_dask["by_fault"] == first["by_fault"] and on_dask["violations"] == first["violations"]
 
 

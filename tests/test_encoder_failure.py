@@ -15,8 +15,9 @@ PASS_MS = 10
 
 class FailingEncoder:
     """Counts the true travel (1 per mm) and times its edges, until it fails at `fail_at_mm` of true travel:
-    `raise` (the bus is gone), `freeze` (the count stands), `burst` (200 spurious counts at once), `half` (every
-    second edge lost: it reads short)."""
+    `raise` (the bus is gone), `freeze` (the count stands), `burst` (200 spurious counts at once), `back` (the count
+    drops by 20, which one channel cannot do, no faster than a train rolls), `half` (every second edge lost: it reads
+    short)."""
 
     def __init__(self, way, fail_at_mm):
         self.way, self.fail_at_mm = way, fail_at_mm
@@ -32,8 +33,8 @@ class FailingEncoder:
         if not self.failed and self.travel_mm >= self.fail_at_mm:
             self.failed = True
             self.base_mm = self.travel_mm
-            if self.way == "burst":
-                self.offset = 200
+            if self.way in ("burst", "back"):
+                self.offset = 200 if self.way == "burst" else -20
         after = self._reading()
         if after != before and v_mmps > 0:
             frac_mm = (self.travel_mm - int(self.travel_mm)) if self.way != "half" else 0.0
@@ -89,7 +90,7 @@ def test_a_healthy_encoder_drives_to_the_end_of_authority_without_a_fault():
     assert not any("enc_fail" in r["flt"] for r in reports)
 
 
-@pytest.mark.parametrize("way", ["raise", "freeze", "burst", "half"])
+@pytest.mark.parametrize("way", ["raise", "freeze", "burst", "back", "half"])
 @pytest.mark.parametrize("fail_at_mm", [500, 900])
 def test_an_encoder_failing_at_line_speed_trips_the_train_short_of_its_end_of_authority(way, fail_at_mm):
     """Failing at 0.5 m or 0.9 m, at 0.6 m/s, with the end of authority at 2 m: the train trips (emergency brake),
@@ -102,6 +103,17 @@ def test_an_encoder_failing_at_line_speed_trips_the_train_short_of_its_end_of_au
     assert tripped and tripped[0]["mode"] == "trip"
     assert reports[-1]["mode"] in ("stop", "trip") and reports[-1]["duty"] == 0
     assert unit.last_sensor_error.startswith("encoder: ")
+
+
+def test_a_count_that_goes_back_trips_a_one_channel_board_and_commands_on_older_reports_are_refused():
+    """The count drops 20 mm at 0.1 m of travel: the board trips, and a command the zone sealed on a report from
+    before the glitch (its end of authority now 20 mm further from the odometer) is refused, not held."""
+    unit, s_mm, v, furthest, _, reports = drive("back", fail_at_mm=100, seconds=1.0)
+    assert unit.enc_fail_ms is not None and unit.last_sensor_error == "encoder: count went back"
+    before = [r for r in reports if "enc_fail" not in r["flt"]][-1]
+    command = wire.encode_command(KEY, "A", 9, 1, 2, before["seq"], 600, 2000, 10000, 600, 800)
+    unit.on_message(wire.topic_command("A"), command, unit._last_step_ms)
+    assert not unit.command_valid(unit._last_step_ms) and "before the encoder failed" in unit.last_reject
 
 
 def test_a_frozen_encoder_from_standstill_trips_within_the_slack_of_commanded_travel():

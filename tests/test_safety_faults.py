@@ -199,3 +199,21 @@ def test_a_stop_list_of_one_station_dwells_once_a_lap_and_leaves_it(square):
     state = sim.zc.trains["A"]
     laps = sim.recorder.laps(0)
     assert laps >= 2 and laps <= state.dwells <= laps + 1 and state.stop_overruns == 0
+
+
+@pytest.mark.parametrize("layout,trains,seed,fault", [
+    ("itb_square", 6, 8, "odometer_jump:at_s=13.1,distance_m=-1.219,train=T1"),    # a follower's count goes back
+    ("itb_square", 5, 16, "odometer_jump:at_s=12.0,distance_m=-2.404,train=T5"),
+    ("itb_square", 3, 0, "odometer_jump:at_s=12.0,distance_m=3.716,train=T2"),      # a leader's jumps ahead
+    ("lego_oval", 4, 3, "odometer_jump:at_s=12.0,distance_m=0.063,train=T3"),       # in range: the filter's to judge
+])
+def test_an_odometer_jump_either_way_breaks_nothing(layout, trains, seed, fault):
+    """A count that jumps back trips the board, which refuses the commands sealed on its older reports (they held up
+    to 2.2 m beyond the train ahead); a jump ahead beyond the motor's reach makes the zone locate the train afresh."""
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config(layout, trains, seed, 25.0, fault_texts=(fault,)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [], summary

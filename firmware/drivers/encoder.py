@@ -33,6 +33,7 @@ class Encoder:
     def __init__(self, pin_a, pin_b=None):
         self.pin_a = pin_a
         self.pin_b = pin_b
+        self.signed = pin_b is not None   # two channels count down on the way back; one channel only ever counts up
         self._count = 0
         self._edge_us = ticks_us()   # as if an edge at start: the first age is the time standing since
         self.age_us = 0

@@ -27,8 +27,18 @@ CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED,)
 LAYOUTS = ("itb_square", "lego_oval")
 FLEET_SIZES = (2, 3, 4, 5, 6)
 
-# fault class -> {parameter: (low, high) drawn uniformly, or a tuple of choices}; "train" and "at_s" are drawn for
-# every class that has them
+
+
+class LogSigned(tuple):
+    """A parameter drawn with a random sign and a magnitude log-uniform in (low, high): small and large alike."""
+
+    def draw(self, rng):
+        low, high = self
+        return rng.choice((-1.0, 1.0)) * math.exp(rng.uniform(math.log(low), math.log(high)))
+
+
+# fault class -> {parameter: (low, high) drawn uniformly, a tuple of choices, or a LogSigned range}; "train" and
+# "at_s" are drawn for every class that has them
 CAMPAIGN_RANGES = {
     "stop_dead": {},
     "reboot": {},
@@ -39,6 +49,7 @@ CAMPAIGN_RANGES = {
     "broker_outage": {"duration_s": (0.5, 5.0)},
     "controller_restart": {"duration_s": (0.5, 5.0)},
     "encoder_burst": {"counts": (50, 600)},
+    "odometer_jump": {"distance_m": LogSigned((0.05, 5.0))},
     "encoder_stuck": {"duration_s": (0.5, 5.0)},
     "encoder_scale": {"duration_s": (1.0, 8.0), "factor": (0.7, 1.5)},
     "ips_offset": {"duration_s": (1.0, 8.0), "offset_m": (0.2, 1.0)},
@@ -125,7 +136,10 @@ def _draw(text, rng, n_trains, duration_s) -> str:
         params["at_s"] = round(rng.uniform(low_s, max(low_s, min(30.0, duration_s - 30.0))), 1)
     for key, span in CAMPAIGN_RANGES[name].items():
         kind = type(defaults[key])
-        value = rng.choice(span) if len(span) > 2 else rng.uniform(*span)
+        if isinstance(span, LogSigned):
+            value = span.draw(rng)
+        else:
+            value = rng.choice(span) if len(span) > 2 else rng.uniform(*span)
         params[key] = int(round(value)) if kind is int else round(value, 3)
     params.update(fixed)
     return str(faults.Fault(name, dict(defaults, **params)))

@@ -44,6 +44,8 @@ FAULTS = {
                  {"train": "", "at_s": 20.0, "distance_m": 0.2, "v_mps": 0.05}),
     "encoder_burst": ("the train's encoder counts this many spurious counts at once",
                       {"train": "", "at_s": 20.0, "counts": 200}),
+    "odometer_jump": ("the train's odometer jumps once by this far (negative: back), a glitch of its count: a board "
+                      "whose one-channel count goes back trips", {"train": "", "at_s": 20.0, "distance_m": 0.5}),
     "encoder_stuck": ("the train's encoder count stands still for a while, whatever the wheel does",
                       {"train": "", "at_s": 20.0, "duration_s": 5.0}),
     "ips_offset": ("the train's IPS fixes are placed this far ahead along the track for a while (multipath)",
@@ -65,6 +67,7 @@ FAULTS = {
                     {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
 }
 _DIRECTIONS = ("up", "down", "both")
+_SIGNED = {("odometer_jump", "distance_m")}   # parameters that may be negative
 _WORDS = {int: "a whole number", float: "a number", str: "text"}
 
 
@@ -89,7 +92,7 @@ def parse(text: str) -> Fault:
             raise ConfigError(f"fault {name}: {key}={value!r} must be a finite number")
     for key in ("at_s", "duration_s", "counts", "factor", "latency_s", "jitter_s", "burst_s", "delay_s",
                 "distance_m"):
-        if key in params and params[key] < 0:
+        if key in params and params[key] < 0 and (name, key) not in _SIGNED:
             raise ConfigError(f"fault {name}: {key} must be >= 0, got {params[key]}")
     if "loss" in params and not 0.0 <= params["loss"] <= 1.0:
         raise ConfigError(f"fault {name}: loss is a share of messages in [0, 1], got {params['loss']}")
@@ -172,6 +175,13 @@ def _encoder_burst(sim, train, p):
     sim.scheduler.call_at(p["at_s"], burst)
 
 
+def _odometer_jump(sim, train, p):
+    def jump():
+        train.encoder.distance_m += p["distance_m"]
+        train.encoder._since_edge_s = 0.0
+    sim.scheduler.call_at(p["at_s"], jump)
+
+
 def _encoder_stuck(sim, train, p):
     encoder = train.encoder
     real_count = encoder.count
@@ -242,7 +252,8 @@ def _controller_restart(sim, _train, p):
 
 _SCHEDULE = {"controller_restart": _controller_restart,
              "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
-             "broker_outage": _broker_outage, "encoder_burst": _encoder_burst, "encoder_stuck": _encoder_stuck,
+             "broker_outage": _broker_outage, "encoder_burst": _encoder_burst,
+             "odometer_jump": _odometer_jump, "encoder_stuck": _encoder_stuck,
              "encoder_scale": _encoder_scale, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
              "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses,
              "link_reorder": _link_reorder, "link_duplicate": _link_duplicate, "rfid_wrong_tag": _rfid_wrong_tag,
