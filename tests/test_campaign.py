@@ -34,10 +34,14 @@ def test_the_plan_is_drawn_from_the_seeds_alone_and_a_longer_campaign_extends_a_
     assert {(spec.layout, spec.trains) for spec in long} == {(lay, n) for lay in campaign.LAYOUTS for n in range(2, 7)}
     for spec in long:
         assert all(faults.parse(text) for text in spec.faults)
-        assert len(spec.faults) == {"none": 0, "combined": 2}.get(spec.fault_class, 1)
+        assert len(spec.faults) == {"none": 0, "combined": 2, "packed_start": 0}.get(spec.fault_class, 1)
         for text in spec.faults:
             params = faults.parse(text).params
             assert 10.0 <= params.get("at_s", 10.0) <= 30.0 and int(params.get("train", "T1")[1:]) <= spec.trains
+    packed = [spec for spec in long if spec.fault_class == "packed_start"]
+    assert {spec.policy for spec in packed} == {"moving_block", "fixed_block"}
+    assert all(0.05 <= spec.start_gap_m <= 0.3 and f"--start-gap {spec.start_gap_m:g}" in spec.command()
+               for spec in packed)
     fixed = campaign.plan(5, ["rollback:distance_m=0.3"], ["itb_square"], (3,), 60.0, 7)
     assert all(faults.parse(spec.faults[0]).params["distance_m"] == 0.3 for spec in fixed)
     assert len({faults.parse(spec.faults[0]).params["v_mps"] for spec in fixed}) == 5   # the others are drawn

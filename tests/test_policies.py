@@ -131,6 +131,25 @@ def test_fixed_block_names_the_occupied_block_or_the_train_in_its_own_block():
     assert auth.reason == "train A in its own block" and auth.distance_m < 0
 
 
+def test_fixed_block_holds_two_trains_in_one_block_and_a_span_that_covers_the_head():
+    """Start-up: A 0.10 m ahead of B in one block. A is not alone on the loop: it may go round to its own block's
+    entry, short of B. B stays. And a span widened by uncertainty whose tail reaches back past B's head holds B."""
+    policy = FixedBlockPolicy(blocks=4)
+    blocks = policy.blocks(LAYOUT)
+    size_m = LAYOUT.length_m / 4
+    a_head, b_head = 0.5 * size_m + 0.35, 0.5 * size_m
+    spans = (("A", a_head, a_head - 0.25), ("B", b_head, b_head - 0.25))
+    front = policy.authority(Situation(LAYOUT, 10.0, 0.05, picture("A", a_head), spans=spans))
+    assert front.reason == f"block {blocks[0].name} occupied"
+    assert front.distance_m == pytest.approx(LAYOUT.length_m - a_head - policy.params.margin_m
+                                             - policy.params.k_sigma * 0.01)
+    behind = policy.authority(Situation(LAYOUT, 10.0, 0.05, picture("B", b_head), spans=spans))
+    assert behind.reason == "train A in its own block" and behind.distance_m < 0
+    widened = (("A", 1.1 * size_m, b_head - 0.02), ("B", b_head, b_head - 0.25))   # A's tail 2 cm behind B's head
+    held = policy.authority(Situation(LAYOUT, 10.0, 0.05, picture("B", b_head), spans=widened))
+    assert held.reason == "train A in its own block" and held.distance_m < 0
+
+
 def test_an_encoder_scale_is_trusted_only_within_the_band_a_wheel_can_have():
     assert scale_trusted(1.02, 0.5, 2.0) and scale_trusted(0.5, 0.5, 2.0)
     assert not any(scale_trusted(x, 0.5, 2.0) for x in (-0.4, 0.0, 0.49, 2.01, float("nan"), float("inf")))

@@ -217,3 +217,20 @@ def test_an_odometer_jump_either_way_breaks_nothing(layout, trains, seed, fault)
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
+
+
+@pytest.mark.parametrize("layout,trains,seed,policy,blocks,gap_m", [
+    ("itb_square", 2, 1, "fixed_block", None, 0.10),   # the front one was alone on the loop: 0.60 m into the other
+    ("itb_square", 5, 6, "fixed_block", 7, 0.251),    # T3 booted over a tag: placed 1.6 cm behind, at 5 sigma
+    ("lego_oval", 4, 2, "moving_block", None, 0.05),
+])
+def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed, policy, blocks, gap_m):
+    """Trains start packed, two or more in one fixed block (as at start-up): each goes only as far as the train
+    ahead allows, the front one round to the block behind it."""
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config(layout, trains, seed, 25.0, policy, blocks=blocks, start_gap_m=gap_m))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and min(t["distance_m"] for t in summary["trains"]) > 1.0, summary

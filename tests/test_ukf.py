@@ -425,6 +425,23 @@ def test_an_outlier_as_the_first_fix_does_not_place_the_train(loop):
     assert est.localized and abs(along_error_m(loop, placed.s_m, 1.0)) < 0.05, placed
 
 
+@pytest.mark.parametrize("head_past_tag_m", [-0.015, 0.0, 0.015])
+def test_a_train_booted_standing_over_a_tag_is_covered_wherever_in_the_field_it_stands(loop, head_past_tag_m):
+    """A board that starts with its reader over a tag reads it at once, without driving into the field: its head is
+    anywhere within the reader's range either side of the tag, and the estimate covers that (it placed the head
+    1.5 cm behind the truth at 5 sigma, as if it had driven in)."""
+    profile = TrainProfile()
+    tag = loop.tags[3]
+    s_m = tag.s_m + head_past_tag_m
+    t_ms = BOARD_OFFSET_MS
+    report = {"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 0, "duty": 0, "mode": "idle", "cseq": -1, "ips": None,
+              "tags": [[tag.uid, 0, t_ms]], "flt": []}
+    est = UkfEstimator(loop, profile)
+    feed(est, [report])
+    placed = est.estimate(controller_s(t_ms))
+    assert est.localized and abs(along_error_m(loop, placed.s_m, s_m)) <= 3.0 * placed.sigma_s_m, placed
+
+
 def test_unknown_setting_is_a_config_error(loop):
     with pytest.raises(ConfigError, match="accel_psd_m2ps3"):
         UkfEstimator(loop, TrainProfile(), accel_psd=1.0)

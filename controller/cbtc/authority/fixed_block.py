@@ -103,17 +103,20 @@ class FixedBlockPolicy:
         train at `head_s`.
 
         A block is occupied if any part of another train is in it. If another train stands in the train's own block
-        ahead of it (only possible at start-up), the train must stay: (0, 0, ...)."""
+        ahead of it, or its span (widened by uncertainty) covers the train's head, the train must stay: (0, 0, ...);
+        two trains in one block happen at start-up. Round a loop, the train's own block counts as occupied when
+        another train is in it behind the train."""
         i = self.index_at(blocks, layout, head_s)
         to_end_m = layout.ahead_m(head_s, blocks[i].end_m)
-        for other, _head, tail in spans:
-            if other != train_id and layout.ahead_m(head_s, tail) < to_end_m:
+        for other, other_head, tail in spans:
+            if other != train_id and (layout.ahead_m(head_s, tail) < to_end_m
+                                      or layout.ahead_m(tail, head_s) <= layout.ahead_m(tail, other_head)):
                 return 0, 0.0, f"train {other} in its own block"
         taken = self._taken(layout, blocks, spans, train_id)
         clear, j = 0, (i + 1) % len(blocks)
         while j not in taken and j != i:
             clear += 1
             j = (j + 1) % len(blocks)
-        if j == i:
+        if j == i and i not in taken:
             return len(blocks), layout.length_m, "alone on the loop"
         return clear, layout.ahead_m(head_s, blocks[j].start_m), f"block {blocks[j].name} occupied"

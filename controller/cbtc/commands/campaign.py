@@ -80,7 +80,7 @@ def checked_plan(args):
             sim_config(layout, n, 0, args.duration)       # the layout loads and the fleet fits on it
     specs = campaign.plan(args.runs, classes, layouts, sizes, args.duration, args.seed)
     for spec in specs:                                    # a train named in a class exists in every run
-        sim_config(spec.layout, spec.trains, spec.seed, spec.duration_s, fault_texts=spec.faults)
+        spec.config()
         for text in spec.faults:
             train = campaign.faults.parse(text).params.get("train", "")
             if train and (not train[1:].isdigit() or int(train[1:]) > spec.trains):

@@ -17,6 +17,9 @@ def register(sub):
                    help="fixed block: N equal blocks instead of the layout's own "
                         "(a loop needs more blocks than trains)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
+    p.add_argument("--start-gap", type=float, default=None, metavar="M",
+                   help="trains start one behind the other, M metres from a tail to the next head (several in one "
+                        "fixed block); default: spread evenly along the layout")
     p.add_argument("--fault", action="append", default=[], metavar="NAME[:PARAM=VALUE,...]",
                    help="inject a fault into the simulated world (repeatable); names: "
                         + ", ".join(f"{name} ({', '.join(f'{k}={v}' for k, v in params.items())})"
@@ -29,5 +32,5 @@ def register(sub):
 def run(args):
     layout = load_layout(args.layout)
     config = sim_config(layout, args.trains, args.seed, args.duration, args.policy, args.estimator, args.blocks,
-                        args.fault)
+                        args.fault, start_gap_m=args.start_gap)
     return run_scenario_and_report(config, f"{args.trains} trains on {layout.name}, seed {args.seed}", args)

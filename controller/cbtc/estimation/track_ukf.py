@@ -77,6 +77,17 @@ def process_noise(n, dt_s, v_mps, k, noise: NoiseModel):
     return Q
 
 
+def tag_read_model(noise: NoiseModel, v_mps: float, in_field: bool = False):
+    """(how far the head is short of a tag at its read (m), the variance of that (m^2)). Driven into the field, the
+    reader, polled once per `rfid_poll_s`, reads between `rfid_range_m` before the tag and `v * rfid_poll_s` later,
+    uniformly. A train that has not moved since it was first heard may have stood in the field from the start (a
+    boot over a tag): the head is then anywhere within `rfid_range_m` either side of the tag."""
+    if in_field:
+        return 0.0, noise.tag_var_m2 + noise.rfid_range_m ** 2 / 3.0
+    late_m = abs(v_mps) * noise.rfid_poll_s
+    return noise.rfid_range_m - 0.5 * late_m, noise.tag_var_m2 + late_m ** 2 / 12.0
+
+
 def hx_odometer(x):
     """The encoder odometer (m)."""
     return np.array([x[D]])
@@ -291,16 +302,12 @@ class TrackUkf:
         R = np.eye(2) * self.noise.ips_var_m2
         return self._gated_update(np.array([x_m, y_m]), R, self._gate2, hx_ips, layout=self.layout)
 
-    def update_tag(self, tag_s_m: float, d_m: float) -> bool:
+    def update_tag(self, tag_s_m: float, d_m: float, in_field: bool = False) -> bool:
         """Fold in a balise read: the tag at `tag_s_m` was read when the odometer showed `d_m`; True when used.
-
-        The reader is polled once per `rfid_poll_s`: the read lands between `rfid_range_m` before the tag and
-        `v * rfid_poll_s` later, uniformly, so the expected offset and its variance depend on the speed.
-        """
+        `in_field`: the train may have stood in the reader's field when the read came (tag_read_model)."""
         n = self.noise
-        late_m = abs(self.ukf.x[V]) * n.rfid_poll_s
-        offset_m = n.rfid_range_m - 0.5 * late_m
-        R = np.diag([n.tag_var_m2 + late_m ** 2 / 12.0, n.odo_var_m2])
+        offset_m, var_m2 = tag_read_model(n, float(self.ukf.x[V]), in_field)
+        R = np.diag([var_m2, n.odo_var_m2])
         self.ukf.residual_z = self._along
         return self._gated_update(np.array([tag_s_m, d_m]), R, self._gate2, hx_tag, rfid_offset_m=offset_m)
 

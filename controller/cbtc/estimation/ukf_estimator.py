@@ -36,6 +36,7 @@ from cbtc.estimation.track_ukf import (
     TrackUkf,
     V,
     initial_covariance,
+    tag_read_model,
 )
 from cbtc.protocol import wire
 from cbtc.railway.balise import BaliseReader
@@ -160,6 +161,7 @@ class UkfEstimator:
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
         self._board_odo_m = None     # the newest report's odometer, as the board counts it
+        self._first_odo_m = None     # the first report's: tag reads at it may come from a train standing on the tag
         self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
 
     # --- counters of the measurements in use --------------------------------------------------------------------------
@@ -238,6 +240,8 @@ class UkfEstimator:
             self._rolled_m += rolled_m
             v_mps = 0.0
         self._board_odo_m = odo_m
+        if self._first_odo_m is None:
+            self._first_odo_m = odo_m
         new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
         if rolled_m:
             new.append(_Event(t_s, "roll", (rolled_m,)))
@@ -245,7 +249,10 @@ class UkfEstimator:
             tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
             if tag_s_m is None:
                 continue
-            new.append(_Event(board_clock.board_s(entry[2]), "tag", (tag_s_m, entry[1] / 1000.0 - self._rolled_m)))
+            # read before the train first moved: it may have stood in the reader's field all along
+            in_field = self._first_odo_m is None or entry[1] / 1000.0 <= self._first_odo_m
+            new.append(_Event(board_clock.board_s(entry[2]), "tag",
+                              (tag_s_m, entry[1] / 1000.0 - self._rolled_m, in_field)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
@@ -363,13 +370,13 @@ class UkfEstimator:
                    if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
         return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
 
-    def _arbitrate(self, f, consensus, tag_s_m, d_m):
+    def _arbitrate(self, f, consensus, tag_s_m, d_m, in_field):
         """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
         three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
         _low, _high, anchor_m, sigma_m = consensus
-        late_m = abs(float(f.ukf.x[V])) * self.noise.rfid_poll_s
-        read_s_m = tag_s_m - self.noise.rfid_range_m + 0.5 * late_m
-        tag_sigma_m = math.sqrt(self.noise.tag_var_m2 + late_m ** 2 / 12.0)
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.ukf.x[V]), in_field)
+        read_s_m = tag_s_m - offset_m
+        tag_sigma_m = math.sqrt(var_m2)
         ring_m = self.layout.loop_length_m
         if abs(circular_offset_m(anchor_m + d_m, read_s_m, ring_m)) > 3.0 * math.hypot(sigma_m, tag_sigma_m):
             return False
@@ -405,10 +412,9 @@ class UkfEstimator:
             return None
         d_m, v_mps = odometer
         if event.kind == "tag":
-            tag_s_m, d_m = event.data
-            late_m = abs(v_mps) * self.noise.rfid_poll_s
-            s_m = tag_s_m - self.noise.rfid_range_m + 0.5 * late_m
-            sigma_s_m = math.sqrt(self.noise.tag_var_m2 + late_m ** 2 / 12.0)
+            tag_s_m, d_m, in_field = event.data
+            offset_m, var_m2 = tag_read_model(self.noise, v_mps, in_field)
+            s_m, sigma_s_m = tag_s_m - offset_m, math.sqrt(var_m2)
             used = _State(None, tags_used=1)
         else:
             anchors = []

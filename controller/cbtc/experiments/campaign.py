@@ -5,7 +5,8 @@ fault's train, time and size are drawn from that seed within CAMPAIGN_RANGES (pa
 `rollback:distance_m=0.3`, are kept as given). So run k is the same whatever the number of runs: a longer campaign
 reuses a shorter one's results. Every run is a `cbtc sim` command (`RunSpec.command`), and `run_one` builds it as
 `cbtc sim` does, so the command printed for a violation reproduces it alone. `none` is the fault-free reference;
-`combined` injects two faults of different classes in one run.
+`combined` injects two faults of different classes in one run; `packed_start` starts the trains one behind the other
+(two or more in one fixed block), under moving or fixed block.
 """
 
 import functools
@@ -22,8 +23,9 @@ from cbtc.errors import ConfigError
 from cbtc.sim import faults
 from cbtc.sim.recorder import violations
 
-NONE, COMBINED = "none", "combined"
-CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED,)
+NONE, COMBINED, PACKED = "none", "combined", "packed_start"
+CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED, PACKED)
+PACKED_GAP_M = (0.05, 0.3)   # packed_start: the gap from a tail to the next head at the start
 LAYOUTS = ("itb_square", "lego_oval")
 FLEET_SIZES = (2, 3, 4, 5, 6)
 
@@ -74,12 +76,27 @@ class RunSpec:
     seed: int
     duration_s: float
     faults: tuple   # fault texts, NAME:param=value,... with every parameter written out
+    policy: str = "moving_block"
+    blocks: int = None          # fixed block: that many equal blocks (None: the layout's own)
+    start_gap_m: float = None   # the trains start one behind the other this far apart (None: spread evenly)
 
     def command(self) -> str:
         """The `cbtc sim` command that makes this run alone."""
         words = ["cbtc sim", f"--layout {self.layout}", f"--trains {self.trains}", f"--seed {self.seed}",
-                 f"--duration {self.duration_s:g}"] + [f"--fault {text}" for text in self.faults]
-        return " ".join(words)
+                 f"--duration {self.duration_s:g}"]
+        if self.policy != "moving_block":
+            words.append(f"--policy {self.policy}")
+        if self.blocks is not None:
+            words.append(f"--blocks {self.blocks}")
+        if self.start_gap_m is not None:
+            words.append(f"--start-gap {self.start_gap_m:g}")
+        return " ".join(words + [f"--fault {text}" for text in self.faults])
+
+    def config(self):
+        """The ScenarioConfig of this run, as `cbtc sim` builds it from the command; ConfigError for a bad value."""
+        from cbtc.sim.runs import sim_config
+        return sim_config(self.layout, self.trains, self.seed, self.duration_s, self.policy, blocks=self.blocks,
+                          fault_texts=self.faults, start_gap_m=self.start_gap_m)
 
 
 def parse_classes(texts) -> list:
@@ -88,7 +105,7 @@ def parse_classes(texts) -> list:
     classes = []
     for text in texts:
         name = text.partition(":")[0]
-        if name in (NONE, COMBINED):
+        if name in (NONE, COMBINED, PACKED):
             if ":" in text:
                 raise ConfigError(f"fault class {text!r}: {name} takes no parameters")
         else:
@@ -108,8 +125,25 @@ def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int)
         layout = layouts[combo % len(layouts)]
         n = fleet_sizes[(combo // len(layouts)) % len(fleet_sizes)]
         run_seed = seed + k
-        specs.append(RunSpec(cls, layout, n, run_seed, duration_s, draw_faults(cls, run_seed, n, duration_s)))
+        if cls == PACKED:
+            specs.append(packed_start(layout, n, run_seed, duration_s))
+        else:
+            specs.append(RunSpec(cls, layout, n, run_seed, duration_s, draw_faults(cls, run_seed, n, duration_s)))
     return specs
+
+
+def packed_start(layout: str, n_trains: int, seed: int, duration_s: float) -> RunSpec:
+    """A packed_start run: the trains start one behind the other, PACKED_GAP_M apart (drawn), so that under fixed
+    block (every other run, drawn) two or more stand in one block; fixed block gets more equal blocks than trains
+    where the layout's own are too few."""
+    rng = random.Random(f"{PACKED}/{seed}")
+    gap_m = round(rng.uniform(*PACKED_GAP_M), 3)
+    if rng.random() < 0.5:
+        return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), start_gap_m=gap_m)
+    from cbtc.layout_files import load_layout
+    own = len(load_layout(layout).blocks)
+    blocks = None if own >= n_trains + 2 else n_trains + 2
+    return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), "fixed_block", blocks, gap_m)
 
 
 def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float) -> tuple:
@@ -147,7 +181,6 @@ def _draw(text, rng, n_trains, duration_s) -> str:
 
 def run_one(spec: RunSpec) -> dict:
     """Make one run and return its record: the spec, the summary figures, the violations, the wall time."""
-    from cbtc.sim.runs import sim_config
     from cbtc.sim.simulation import Simulation
 
     logger = logging.getLogger("cbtc")
@@ -155,8 +188,7 @@ def run_one(spec: RunSpec) -> dict:
     logger.setLevel(logging.ERROR)   # the figures count what the zone would log; the caller's level comes back after
     started = time.perf_counter()
     try:
-        config = sim_config(spec.layout, spec.trains, spec.seed, spec.duration_s, fault_texts=spec.faults)
-        summary = Simulation(config).run().summary()
+        summary = Simulation(spec.config()).run().summary()
     finally:
         logger.setLevel(level)
     keep = ("collisions", "authority_overruns", "granted_beyond_m", "emergency_trips", "encoder_trips", "stranded",

@@ -73,6 +73,7 @@ class Recorder:
         heads = [t.head_s for t in trains]
         spans = [(t.train_id, t.head_s, t.tail_s) for t in trains]
         ahead = train_ahead(layout, heads)
+        first = len(self.t_s) == 1   # a train that starts inside a zone has not entered it
         for i, train in enumerate(trains):
             self._granted(i, train, now_s, heads, ahead)
             self.travelled_m[i].append(train.travelled_m)
@@ -82,7 +83,7 @@ class Recorder:
                 j = ahead[i]
                 gap = layout.ahead_m(heads[i], trains[j].tail_s)
                 inside = head_inside(layout, heads[i], trains[j].tail_s, trains[j].profile.length_m)
-                if inside and not self._colliding[i]:
+                if inside and not self._colliding[i] and not first:
                     self.collisions[i] += 1
                 self._colliding[i] = inside
                 self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
@@ -91,7 +92,7 @@ class Recorder:
             if i in ahead and self.constrained[i][-1]:
                 self.following_gap_m[i].append(self.gap_m[i][-1])
             over = protected_m(self.sim.policy, layout, train.train_id, spans) < -0.001
-            if over and not self._overrun[i]:
+            if over and not self._overrun[i] and not first:
                 self.overruns[i] += 1
             self._overrun[i] = over
             est = None

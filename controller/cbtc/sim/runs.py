@@ -8,7 +8,7 @@ from cbtc.zone.config import queue_scenario
 
 
 def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = "moving_block",
-               estimator: str = "ukf", blocks=None, fault_texts=()):
+               estimator: str = "ukf", blocks=None, fault_texts=(), start_gap_m=None):
     """The ScenarioConfig of `cbtc sim --layout LAYOUT --trains N ... --fault F...` (`layout`: a name, a file or a
     loaded Layout); ConfigError for any bad value, before anything runs."""
     if isinstance(layout, str):
@@ -17,7 +17,7 @@ def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = 
         raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
     options = {} if blocks is None else {"blocks": blocks}
     injected = tuple(faults.parse(text) for text in fault_texts)
-    config = queue_scenario(layout, trains, seed=seed, duration_s=duration_s, policy=policy, estimator=estimator,
-                            policy_options=options)
+    config = queue_scenario(layout, trains, seed=seed, duration_s=duration_s, start_gap_m=start_gap_m,
+                            policy=policy, estimator=estimator, policy_options=options)
     config.faults = injected
     return config

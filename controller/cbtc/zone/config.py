@@ -2,6 +2,7 @@
 that simulated and live runs share (the ITB paper's two trains, a queue of N trains, the fleet of a live run)."""
 
 import hashlib
+import math
 from dataclasses import dataclass, field
 
 from cbtc.authority.rules import AuthorityParams
@@ -66,17 +67,27 @@ def paper_scenario(layout, seed=0, laps=5, duration_s=200.0, **overrides) -> Sce
     return ScenarioConfig(layout=layout, trains=trains, seed=seed, laps=laps, duration_s=duration_s, **overrides)
 
 
-def queue_scenario(layout, n_trains, seed=0, duration_s=300.0, **overrides) -> ScenarioConfig:
-    """N trains spread evenly along a loop, each stopping at every station, each following the one ahead."""
+def queue_scenario(layout, n_trains, seed=0, duration_s=300.0, start_gap_m=None, **overrides) -> ScenarioConfig:
+    """N trains spread evenly along a loop, each stopping at every station, each following the one ahead; with
+    `start_gap_m`, they start one behind the other, that far from a tail to the next head."""
     profile = TrainProfile()
     params = overrides.get("params", AuthorityParams())
     spacing_m = layout.length_m / n_trains
     need_m = profile.length_m + params.margin_m + 0.05
-    if n_trains < 1 or spacing_m < need_m:
+    if start_gap_m is not None:
+        if not (math.isfinite(start_gap_m) and start_gap_m >= 0.0):
+            raise ConfigError(f"--start-gap {start_gap_m}: give a distance in metres >= 0, such as 0.1")
+        spacing_m = profile.length_m + start_gap_m
+        need_m = spacing_m
+        if n_trains >= 1 and n_trains * spacing_m > layout.length_m - need_m:
+            raise ConfigError(f"{n_trains} trains {start_gap_m} m apart do not fit on {layout.name} "
+                              f"({layout.length_m:.2f} m): give fewer trains or a smaller --start-gap")
+    elif n_trains < 1 or spacing_m < need_m:
         raise ConfigError(f"{n_trains} trains do not fit on {layout.name} ({layout.length_m:.2f} m): at most "
                           f"{int(layout.length_m // need_m)} with {need_m:.2f} m per train")
     stops = tuple(st.name for st in layout.stations)
-    trains = [TrainSpec(f"T{k + 1}", layout.wrap(k * spacing_m), stops, profile) for k in range(n_trains)]
+    trains = [TrainSpec(f"T{k + 1}", layout.wrap(-k * spacing_m if start_gap_m is not None else k * spacing_m), stops,
+                        profile) for k in range(n_trains)]
     return ScenarioConfig(layout=layout, trains=trains, seed=seed, duration_s=duration_s, **overrides)
 
 
