@@ -201,15 +201,18 @@ def test_rfid_wrong_tag_reads_tags_that_are_elsewhere():
 
 
 def test_rollback_rolls_the_standing_train_back_and_its_encoder_counts_on():
+    """It rolls only while standing undriven: a drive forward holds it."""
     sim, train, _state = run(f"rollback:at_s={AT_S},distance_m=0.2,v_mps=0.1", 9.0)
     sim.scheduler.run_until(AT_S + 0.01)
     while not train.rolling_back:                         # it waits for the train to stand (at a station)
         sim.scheduler.run_until(sim.scheduler.now_s() + 0.05)
         assert sim.scheduler.now_s() < 40.0
-    true_m, count = train.travelled_m, train.encoder.count()
-    sim.scheduler.run_until(sim.scheduler.now_s() + 2.5)
-    assert not train.rolling_back and train.travelled_m < true_m - 0.19 + 0.05
-    assert train.encoder.count() - count > 0.19 * train.profile.counts_per_m
+    true_m, count, left_m = train.travelled_m, train.encoder.count(), train.rollback_left_m
+    while train.rolling_back:                             # until it has rolled it all, or is driven again
+        sim.scheduler.run_until(sim.scheduler.now_s() + 0.02)
+    rolled_m = left_m - train.rollback_left_m
+    assert rolled_m > 0.02 and train.travelled_m == pytest.approx(true_m - rolled_m, abs=0.01)
+    assert train.encoder.count() - count >= 0.95 * rolled_m * train.profile.counts_per_m
 
 
 def test_the_fault_table_of_the_docs_lists_every_fault_with_its_parameters_and_campaign_ranges():

@@ -234,3 +234,20 @@ def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed,
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [] and min(t["distance_m"] for t in summary["trains"]) > 1.0, summary
+
+
+@pytest.mark.parametrize("layout,trains,seed,fault,rolled_onto", [
+    # it rolled on at full drive and its board counted the roll as travel: the follower ran into it
+    ("lego_oval", 5, 44, "rollback:at_s=13.3,distance_m=0.159,train=T4,v_mps=0.03", 0),
+    # it rolls 0.255 m onto the train standing behind it: counted apart, no authority could prevent it
+    ("lego_oval", 5, 27, "rollback:at_s=15.8,distance_m=0.255,train=T5,v_mps=0.083", 1),
+])
+def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_counted_apart(
+        layout, trains, seed, fault, rolled_onto):
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary

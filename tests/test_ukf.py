@@ -442,6 +442,23 @@ def test_a_train_booted_standing_over_a_tag_is_covered_wherever_in_the_field_it_
     assert est.localized and abs(along_error_m(loop, placed.s_m, s_m)) <= 3.0 * placed.sigma_s_m, placed
 
 
+def test_a_roll_widens_the_estimate_by_all_it_rolled_not_in_quadrature(loop):
+    """A standing train's board reports 100 steps of 2 mm as `roll` (motion of unknown sign): the train may be 0.2 m
+    either way, so the estimate's sigma grows to at least that (steps added in quadrature gave 2 cm), and the
+    odometer the filter sees does not move."""
+    profile = TrainProfile()
+    tag = loop.tags[2]
+    t_ms = BOARD_OFFSET_MS
+    reports = [{"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 0, "duty": 0, "mode": "idle", "cseq": -1, "ips": None,
+                "tags": [[tag.uid, 0, t_ms]], "flt": []}]
+    for k in range(1, 101):
+        reports.append(dict(reports[0], seq=k, t_ms=t_ms + 50 * k, odo_mm=2 * k, tags=[], flt=["roll"]))
+    est = UkfEstimator(loop, profile)
+    feed(est, reports)
+    placed = est.estimate(controller_s(reports[-1]["t_ms"]))
+    assert placed.sigma_s_m >= 0.2 and abs(along_error_m(loop, placed.s_m, tag.s_m)) < 0.02, placed
+
+
 def test_unknown_setting_is_a_config_error(loop):
     with pytest.raises(ConfigError, match="accel_psd_m2ps3"):
         UkfEstimator(loop, TrainProfile(), accel_psd=1.0)

@@ -147,7 +147,7 @@ def _make(todo, args, done, run_dask, run_local):
 
 
 COLUMNS = [("class", "fault class"), ("runs", "runs"), ("runs_with_violations", "violating"),
-           ("collisions", "collisions"), ("authority_overruns", "overruns"),
+           ("collisions", "collisions"), ("authority_overruns", "overruns"), ("rolled_onto", "rolled onto"),
            ("worst_granted_beyond_m", "beyond m"), ("emergency_trips", "trips"), ("stranded", "stranded"),
            ("mean_following_gap_m", "follow gap m"), ("worst_gap_m", "worst gap m"), ("mean_lap_s", "lap s")]
 
@@ -158,7 +158,7 @@ def _print(f):
     print(format_table(rows, COLUMNS))
     print(f"{f['runs']} runs ({f['runs_made']} made now in {f['wall_s']} s on {f['where']}, {f['runs_reused']} "
           f"reused); beyond m: the worst reach of an authority past the true tail of the train ahead (> 0 is a "
-          f"violation)")
+          f"violation); rolled onto: a train ahead that rolled back into a standing train's margin or onto it")
     if f["violations"]:
         print(f"{len(f['violations'])} runs with violations; each reproduces alone with:")
         for v in f["violations"]:

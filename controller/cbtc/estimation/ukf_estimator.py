@@ -108,8 +108,9 @@ class _Event:
 
     def __init__(self, t_s, kind, data):
         self.t_s = t_s
-        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m); "roll": (step_m,);
-        #                       "range": (radio_x_m, radio_y_m, range_m, sigma_m)
+        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field);
+        #                       "roll": (step_m, run_m: the roll's steps before); "range": (radio_x_m, radio_y_m,
+        #                       range_m, sigma_m)
         self.data = data
         self.sort_key = (t_s, _KIND_RANK[kind], data)
 
@@ -163,6 +164,7 @@ class UkfEstimator:
         self._board_odo_m = None     # the newest report's odometer, as the board counts it
         self._first_odo_m = None     # the first report's: tag reads at it may come from a train standing on the tag
         self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
+        self._roll_run_m = 0.0       # ... of the current roll, report after report
 
     # --- counters of the measurements in use --------------------------------------------------------------------------
 
@@ -234,17 +236,20 @@ class UkfEstimator:
         # a step the board counted while braked to a standstill (`roll`) has no sign: it is taken out of the odometer
         # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
-        rolled_m = 0.0
+        rolled_m, run_m = 0.0, self._roll_run_m
         if "roll" in report.get("flt", ()) and self._board_odo_m is not None:
             rolled_m = max(0.0, odo_m - self._board_odo_m)
             self._rolled_m += rolled_m
+            self._roll_run_m += rolled_m
             v_mps = 0.0
+        else:
+            self._roll_run_m = 0.0
         self._board_odo_m = odo_m
         if self._first_odo_m is None:
             self._first_odo_m = odo_m
         new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
         if rolled_m:
-            new.append(_Event(t_s, "roll", (rolled_m,)))
+            new.append(_Event(t_s, "roll", (rolled_m, run_m)))
         for entry in report["tags"]:
             tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
             if tag_s_m is None:
@@ -310,7 +315,9 @@ class UkfEstimator:
         if event.kind == "odo":
             f.update_odometer(event.data[0])
         elif event.kind == "roll":
-            f.widen_position(event.data[0])
+            # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
+            step_m, run_m = event.data
+            f.widen_position(math.sqrt(step_m * (step_m + 2.0 * run_m)))
         elif event.kind == "tag":
             if f.update_tag(*event.data):
                 new.tags_used += 1

@@ -63,7 +63,7 @@ CAMPAIGN_RANGES = {
     "rollback": {"distance_m": (0.05, 0.3), "v_mps": (0.02, 0.1)},
 }
 # per-class figures: counted over the runs (sums), or their worst, or their mean
-_SUMS = ("collisions", "authority_overruns", "emergency_trips", "encoder_trips", "stranded")
+_SUMS = ("collisions", "authority_overruns", "rolled_onto", "emergency_trips", "encoder_trips", "stranded")
 
 
 @dataclass(frozen=True)
@@ -191,8 +191,8 @@ def run_one(spec: RunSpec) -> dict:
         summary = Simulation(spec.config()).run().summary()
     finally:
         logger.setLevel(level)
-    keep = ("collisions", "authority_overruns", "granted_beyond_m", "emergency_trips", "encoder_trips", "stranded",
-            "mean_following_gap_m", "min_gap_m", "mean_lap_s", "simulated_s")
+    keep = ("collisions", "authority_overruns", "rolled_onto", "granted_beyond_m", "emergency_trips", "encoder_trips",
+            "stranded", "mean_following_gap_m", "min_gap_m", "mean_lap_s", "simulated_s")
     return {"command": spec.command(), "spec": asdict(spec), "summary": {k: summary[k] for k in keep},
             "violations": violations(summary), "wall_s": round(time.perf_counter() - started, 3),
             "code": code_fingerprint()}

@@ -39,8 +39,9 @@ FAULTS = {
                        {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.3, "direction": "both"}),
     "rfid_wrong_tag": ("this share of the train's RFID reads return another tag of the layout (a misplaced or "
                        "swapped tag) for a while", {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
-    "rollback": ("the train, once standing after at_s, rolls back this far at this speed (brakes not holding on a "
-                 "slope); its one-channel encoder counts the roll as forward travel",
+    "rollback": ("the train, standing undriven after at_s, rolls back at this speed until it has rolled this far "
+                 "(brakes not holding on a slope; a drive forward holds it); its one-channel encoder counts the roll "
+                 "as forward travel",
                  {"train": "", "at_s": 20.0, "distance_m": 0.2, "v_mps": 0.05}),
     "encoder_burst": ("the train's encoder counts this many spurious counts at once",
                       {"train": "", "at_s": 20.0, "counts": 200}),

@@ -1,6 +1,9 @@
 """The recorder of a simulated run: truth, reports and authority limits, and the figures computed from them.
 
-Truth decides: collisions and authority overruns come from the trains' true positions; `granted_beyond_m` is how far
+Truth decides: collisions and authority overruns come from the trains' true positions, counted when a train's own
+forward motion takes its head into the span or the protected zone of the train ahead; when the train ahead rolls back
+onto a train standing still, that is counted apart (`rolled_onto`): no authority can move a standing train out of
+the way. `granted_beyond_m` is how far
 the authority a board held reached past the true tail of the train ahead (or the end of the line); a train is
 stranded when it stood still over the run's last STRANDED_S with more than its following reach of true room ahead.
 """
@@ -36,6 +39,8 @@ class Recorder:
         self.following_gap_m = [[] for _ in range(n)]  # true gap at the samples where it is so limited
         self.collisions = [0] * n
         self.overruns = [0] * n
+        self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or span
+        self._travelled_before = [0.0] * n
         self.granted_beyond_m = [-math.inf] * n   # worst (highest) granted room less true room while authorised
         self.room_m = [math.inf] * n             # true room ahead at the newest sample
         self._colliding = [False] * n
@@ -75,6 +80,8 @@ class Recorder:
         ahead = train_ahead(layout, heads)
         first = len(self.t_s) == 1   # a train that starts inside a zone has not entered it
         for i, train in enumerate(trains):
+            moved = train.travelled_m > self._travelled_before[i] + 1e-4   # forward since the last sample
+            self._travelled_before[i] = train.travelled_m
             self._granted(i, train, now_s, heads, ahead)
             self.travelled_m[i].append(train.travelled_m)
             self.head_s_m[i].append(heads[i])
@@ -84,7 +91,10 @@ class Recorder:
                 gap = layout.ahead_m(heads[i], trains[j].tail_s)
                 inside = head_inside(layout, heads[i], trains[j].tail_s, trains[j].profile.length_m)
                 if inside and not self._colliding[i] and not first:
-                    self.collisions[i] += 1
+                    if moved:
+                        self.collisions[i] += 1
+                    else:
+                        self.rolled_onto[i] += 1
                 self._colliding[i] = inside
                 self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
             state = self.sim.zc.trains[train.train_id]
@@ -93,7 +103,10 @@ class Recorder:
                 self.following_gap_m[i].append(self.gap_m[i][-1])
             over = protected_m(self.sim.policy, layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i] and not first:
-                self.overruns[i] += 1
+                if moved:
+                    self.overruns[i] += 1
+                else:
+                    self.rolled_onto[i] += 1
             self._overrun[i] = over
             est = None
             if state.report is not None and state.estimator.localized:
@@ -182,6 +195,7 @@ class Recorder:
                 "min_gap_m": None if gaps is None else round(float(np.min(gaps)), 3),
                 "collisions": self.collisions[i],
                 "authority_overruns": self.overruns[i],
+                "rolled_onto": self.rolled_onto[i],
                 "granted_beyond_m": _metres(self.granted_beyond_m[i]),
                 "stranded": self.stranded(i),
                 "station_stops": state.dwells,
@@ -205,6 +219,7 @@ class Recorder:
             "trains": trains,
             "collisions": sum(self.collisions),
             "authority_overruns": sum(self.overruns),
+            "rolled_onto": sum(self.rolled_onto),
             "granted_beyond_m": _metres(max(beyond)) if beyond else None,
             "stranded": sum(t["stranded"] for t in trains),
             "mean_following_gap_m": round(float(np.mean(following)), 3) if following else None,

@@ -43,9 +43,8 @@ class VirtualTrain:
         self._now_s = 0.0
         self.frozen = False  # a dead board: no loop, no reports, motor state as it was
         self.stopped_dead = False  # fault injection: the train stopped without braking (derailment, obstacle)
-        self._rollback_m = 0.0     # fault injection: still to roll back once standing, at _rollback_mps
+        self._rollback_m = 0.0     # fault injection: still to roll back while standing undriven, at _rollback_mps
         self._rollback_mps = 0.0
-        self.rolling_back = False
         client.subscribe(wire.topic_command(train_id), self._on_command)
         client.on_connect = self._on_connect
 
@@ -93,15 +92,24 @@ class VirtualTrain:
         self.a_mps2 = 0.0
 
     def roll_back(self, distance_m: float, v_mps: float) -> None:
-        """Fault injection: once the train stands, it rolls back `distance_m` at `v_mps` whatever its motor does (a
-        slope its brakes do not hold); the one-channel encoder counts the roll as forward travel."""
+        """Fault injection: while the train stands undriven, it rolls back at `v_mps` until it has rolled `distance_m`
+        (a slope its brakes do not hold; a drive forward holds it, and the roll goes on when it stands undriven
+        again); the one-channel encoder counts the roll as forward travel."""
         self._rollback_m, self._rollback_mps = distance_m, v_mps
+
+    @property
+    def rolling_back(self) -> bool:
+        """A roll is left to go and the train stands undriven: it rolls back now."""
+        return self._rollback_m > 1e-9 and self.v_mps == 0.0 and self.motor.duty_pct <= 0
+
+    @property
+    def rollback_left_m(self) -> float:
+        return self._rollback_m
 
     def _roll(self, dt_s: float) -> None:
         ds_m = min(self._rollback_m, self._rollback_mps * dt_s)
         self.travelled_m -= ds_m
         self._rollback_m -= ds_m
-        self.rolling_back = self._rollback_m > 1e-9
         self.encoder.advance(ds_m, dt_s, self._rollback_mps, 0.0)
 
     def tick(self, now_s: float) -> None:
@@ -109,8 +117,7 @@ class VirtualTrain:
         dt_s = 0.0 if self._last_s is None else now_s - self._last_s
         self._last_s = now_s
         self._now_s = now_s
-        if dt_s > 0 and self._rollback_m > 0.0 and (self.rolling_back or self.v_mps == 0.0):
-            self.rolling_back = True
+        if dt_s > 0 and self.rolling_back:
             self._roll(dt_s)
         elif dt_s > 0 and not self.stopped_dead:
             s_before, v_before = self.travelled_m, self.v_mps
