@@ -251,3 +251,16 @@ def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [] and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary
+
+
+def test_a_slip_learnt_as_the_scale_does_not_strand_the_train():
+    """A wheel read 28 % short for 5.5 s; the filter learnt that as its scale, whose low bound fell to 0.35 odometer
+    m per m, below the band a wheel can have: the zone then gave no authority, and a train standing still never
+    relearns it (it stood for the last 30 s). Below the band, the band's lowest is used: it runs on."""
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config("lego_oval", 4, 25, 50.0, fault_texts=(
+        "encoder_scale:at_s=22.8,duration_s=5.553,factor=0.718,train=T2",)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert summary["stranded"] == 0 and summary["collisions"] == 0 and summary["authority_overruns"] == 0, summary

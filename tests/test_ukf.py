@@ -459,6 +459,35 @@ def test_a_roll_widens_the_estimate_by_all_it_rolled_not_in_quadrature(loop):
     assert placed.sigma_s_m >= 0.2 and abs(along_error_m(loop, placed.s_m, tag.s_m)) < 0.02, placed
 
 
+def test_a_balise_read_the_filter_gates_is_covered_as_a_wheel_that_slipped(loop):
+    """The wheel counts 0.15 m short between two balises: the second read is gated (the filter trusts its wheel),
+    but the train may be where the balise says, so the estimate reaches that far ahead and the odometer scale the
+    controller converts with falls to the lowest a wheel can read. A read metres off is another tag: not covered."""
+    profile = TrainProfile()
+    first, second = loop.tags[2], loop.tags[3]
+    spacing_m = loop.ahead_m(first.s_m, second.s_m)
+    t_ms = BOARD_OFFSET_MS
+    base = {"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 500, "duty": 50, "mode": "run", "cseq": -1, "ips": None,
+            "tags": [[first.uid, 0, t_ms]], "flt": []}
+    reports = [base]
+    odo_mm, k, target_mm = 0, 0, int((spacing_m - 0.15) * 1000)
+    while odo_mm < target_mm:
+        k += 1
+        odo_mm = min(25 * k, target_mm)
+        reports.append(dict(base, seq=k, t_ms=t_ms + 50 * k, odo_mm=odo_mm, tags=[]))
+    reports[-1] = dict(reports[-1], tags=[[second.uid, odo_mm, reports[-1]["t_ms"]]])
+    est = UkfEstimator(loop, profile)
+    feed(est, reports)
+    now = est.estimate(controller_s(reports[-1]["t_ms"]))
+    assert est.counters()["tags_rejected"] == 1 and 0.13 < now.ahead_m < 0.17, now
+    assert est.odometer_per_m_low(3.0) == 0.5
+    far = loop.tags[7]
+    est = UkfEstimator(loop, profile)
+    feed(est, reports[:-1] + [dict(reports[-1], tags=[[far.uid, odo_mm, reports[-1]["t_ms"]]])])
+    now = est.estimate(controller_s(reports[-1]["t_ms"]))
+    assert now.ahead_m == now.behind_m == 0.0 and est.odometer_per_m_low(3.0) > 0.9
+
+
 def test_unknown_setting_is_a_config_error(loop):
     with pytest.raises(ConfigError, match="accel_psd_m2ps3"):
         UkfEstimator(loop, TrainProfile(), accel_psd=1.0)

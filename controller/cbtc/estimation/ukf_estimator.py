@@ -97,6 +97,7 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
 
 
 _WHEEL_LOWEST = wire.ODO_MM_PER_M_MIN / 1000.0   # odometer m per true m: the least a command may state
+_SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
 _KIND_RANK = {"roll": 0, "odo": 1, "tag": 2, "ips": 3, "range": 4}
 
 
@@ -119,10 +120,10 @@ class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
-                 "consensus", "innovations", "disagree", "disagreements")
+                 "consensus", "innovations", "disagree", "disagreements", "tag_offset")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
-                 consensus=None, innovations=(), disagree=None, disagreements=0):
+                 consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -136,10 +137,13 @@ class _State:
         self.disagree = disagree       # (low_m, high_m): how far behind (<= 0) and ahead (>= 0) of the filter's
         #                                position the IPS may put the train; None while they agree
         self.disagreements = disagreements   # runs of disagreement begun
+        self.tag_offset = tag_offset   # where the newest gated balise read puts the train, less the filter's position
+        #                                (m); None while no read disagrees, or once the IPS has shown it wrong
 
     def copy_with(self, snap):
         return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
-                      self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements)
+                      self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
+                      self.tag_offset)
 
 
 class UkfEstimator:
@@ -195,17 +199,21 @@ class UkfEstimator:
         controller turns a distance along the track into odometer units with it, so a train whose encoder reads short
         still stops within its authority. A scale error learnt above k_sigma prior sigmas counts as that much (a wheel
         that spun for a while reads true again when it grips); 1 - k_sigma * the prior sigma while unlocated or not
-        estimated; the lowest a wheel can read (the band a command may state) while the IPS puts the train ahead of
-        it."""
+        estimated; the lowest a wheel can read (the band a command may state) while the IPS or a balise puts the
+        train ahead of it, or when the bound learnt falls below that band (a slip learnt as the scale: the train would
+        stand for good, since only travel relearns it); not finite or not positive, it says so to the caller."""
         state = self._newest
-        if state is not None and state.disagree is not None and state.disagree[1] > 0.0 and k_sigma > 0.0:
-            return _WHEEL_LOWEST   # the IPS puts the train ahead of its wheel: the wheel may read short, by any amount
+        if state is not None and k_sigma > 0.0 and ((state.disagree is not None and state.disagree[1] > 0.0)
+                                                    or (state.tag_offset is not None and state.tag_offset > 0.0)):
+            return _WHEEL_LOWEST   # the IPS or a balise puts the train ahead of its wheel: it may read short, by any
+            #                        amount
         if state is None or len(state.snap[1]) <= K:
             return 1.0 - k_sigma * self.params.scale_sigma
         _t, x, P = state.snap
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
-        return 1.0 + k_m - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
+        low = 1.0 + k_m - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
+        return max(low, _WHEEL_LOWEST) if 0.0 < low else low
 
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
@@ -321,12 +329,21 @@ class UkfEstimator:
         elif event.kind == "tag":
             if f.update_tag(*event.data):
                 new.tags_used += 1
+                new.tag_offset = None
             elif state.consensus is not None and self._arbitrate(f, state.consensus, *event.data):
                 new.tags_used += 1
                 new.relocations += 1
                 new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
+                new.tag_offset = None
             else:
+                # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
+                tag_s_m, d_m, in_field = event.data
+                offset_m, _var = tag_read_model(self.noise, float(f.ukf.x[V]), in_field)
+                here_m = tag_s_m - offset_m + float(f.ukf.x[D]) - d_m
+                story_m = circular_offset_m(here_m, float(f.ukf.x[S]), self.layout.loop_length_m)
+                if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
+                    new.tag_offset = story_m
         elif event.kind == "range":
             f.update_range(*event.data)
         else:
@@ -342,6 +359,8 @@ class UkfEstimator:
                 new.gated = (state.gated + (fix_s_m - d_m,))[-self.params.relocate_after:]
                 new.consensus = self._consensus(s_m, d_m, new.gated) or state.consensus
             new.disagree = self._disagreement(new.consensus, new.innovations)
+            if new.tag_offset is not None and self._ips_refutes(new.innovations, new.tag_offset):
+                new.tag_offset = None
             if new.disagree is not None and state.disagree is None:
                 new.disagreements += 1
         new.snap = f.snapshot()
@@ -362,6 +381,15 @@ class UkfEstimator:
         if low == high == 0.0:
             return None
         return low, high
+
+    def _ips_refutes(self, innovations, offset_m) -> bool:
+        """The newest IPS fixes agree with the filter (their median within 2 sigma of it) and not with a balise read
+        `offset_m` away (beyond 4 sigma): the read was wrong."""
+        if len(innovations) < self.params.relocate_after:
+            return False
+        bias_m = statistics.median(innovations)
+        sigma_m = 1.25 * self.profile.ips_sigma_m / math.sqrt(len(innovations))
+        return abs(bias_m) <= 2.0 * sigma_m and abs(bias_m - offset_m) > 4.0 * sigma_m
 
     def _consensus(self, s_m, d_m, anchors_m):
         """(low_m, high_m, anchor_m, sigma_m) where `locate_fixes` of the gated IPS `anchors_m` agree: the span of
@@ -489,6 +517,8 @@ class UkfEstimator:
         ahead_m = behind_m = 0.0
         if state.disagree is not None:
             ahead_m, behind_m = max(0.0, state.disagree[1]), max(0.0, -state.disagree[0])
+        if state.tag_offset is not None:
+            ahead_m, behind_m = max(ahead_m, state.tag_offset), max(behind_m, -state.tag_offset)
         est = Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
                        data_t_s=newest_t_s + offset_s, ahead_m=ahead_m, behind_m=behind_m)
