@@ -167,6 +167,7 @@ class UkfEstimator:
         self._filter = None          # the TrackUkf the states are replayed on
         self._board_odo_m = None     # the newest report's odometer, as the board counts it
         self._first_odo_m = None     # the first report's: tag reads at it may come from a train standing on the tag
+        self._board_t_s = None       # the newest report's board time (s)
         self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
         self._roll_run_m = 0.0       # ... of the current roll, report after report
 
@@ -252,7 +253,16 @@ class UkfEstimator:
             v_mps = 0.0
         else:
             self._roll_run_m = 0.0
-        self._board_odo_m = odo_m
+            if self._board_odo_m is not None:
+                # counts beyond what the motor can drive since the previous report (a count that caught up after
+                # sticking, a burst) are not travel: taken out like a roll, and the position widened by them
+                reach_m = 1.5 * self.profile.v_noload_mps * max(0.0, t_s - self._board_t_s) + 0.01
+                excess_m = odo_m - self._board_odo_m - reach_m
+                if excess_m > 0.0:
+                    rolled_m, run_m = excess_m, 0.0
+                    self._rolled_m += excess_m
+                    v_mps = min(v_mps, 1.5 * self.profile.v_noload_mps)
+        self._board_odo_m, self._board_t_s = odo_m, t_s
         if self._first_odo_m is None:
             self._first_odo_m = odo_m
         new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
@@ -464,8 +474,13 @@ class UkfEstimator:
             s_m, sigma_s_m = placed[0] + d_m, placed[1]
             used = _State(None, ips_used=self.params.locate_fixes)
         with_scale = self.params.scale_sigma > 0
-        x0 = [self.layout.wrap(s_m), v_mps, d_m] + ([0.0] if with_scale else [])
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
+        top_mps = 1.5 * self.profile.v_noload_mps
+        if not 0.0 <= v_mps <= top_mps:
+            # the odometer moved faster than the motor can drive (a count that caught up after sticking, a burst):
+            # not the train's speed; it starts anywhere in what the train can do
+            v_mps, sigma_v_mps = min(max(v_mps, 0.0), top_mps), top_mps
+        x0 = [self.layout.wrap(s_m), v_mps, d_m] + ([0.0] if with_scale else [])
         P0 = initial_covariance(len(x0), sigma_s_m, sigma_v_mps, 0.002, self.params.scale_sigma)
         self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
         used.snap = self._filter.snapshot()
