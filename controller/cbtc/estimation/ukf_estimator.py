@@ -168,6 +168,7 @@ class UkfEstimator:
         self._board_odo_m = None     # the newest report's odometer, as the board counts it
         self._first_odo_m = None     # the first report's: tag reads at it may come from a train standing on the tag
         self._board_t_s = None       # the newest report's board time (s)
+        self._top_mps = 1.5 * profile.v_noload_mps   # no train runs half again faster than its motor drives it
         self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
         self._roll_run_m = 0.0       # ... of the current roll, report after report
 
@@ -256,12 +257,12 @@ class UkfEstimator:
             if self._board_odo_m is not None:
                 # counts beyond what the motor can drive since the previous report (a count that caught up after
                 # sticking, a burst) are not travel: taken out like a roll, and the position widened by them
-                reach_m = 1.5 * self.profile.v_noload_mps * max(0.0, t_s - self._board_t_s) + 0.01
+                reach_m = self._top_mps * max(0.0, t_s - self._board_t_s) + 0.01
                 excess_m = odo_m - self._board_odo_m - reach_m
                 if excess_m > 0.0:
                     rolled_m, run_m = excess_m, 0.0
                     self._rolled_m += excess_m
-                    v_mps = min(v_mps, 1.5 * self.profile.v_noload_mps)
+                    v_mps = min(v_mps, self._top_mps)
         self._board_odo_m, self._board_t_s = odo_m, t_s
         if self._first_odo_m is None:
             self._first_odo_m = odo_m
@@ -383,11 +384,10 @@ class UkfEstimator:
         low = high = 0.0
         if consensus is not None:
             low, high = min(0.0, consensus[0]), max(0.0, consensus[1])
-        if len(innovations) >= self.params.relocate_after:
-            bias_m = statistics.median(innovations)
-            sigma_m = 1.25 * self.profile.ips_sigma_m / math.sqrt(len(innovations))   # of a median of normals
-            if abs(bias_m) > 4.0 * sigma_m:
-                low, high = min(low, bias_m - 3.0 * sigma_m), max(high, bias_m + 3.0 * sigma_m)
+        bias = self._ips_bias(innovations)
+        if bias is not None and abs(bias[0]) > 4.0 * bias[1]:
+            bias_m, sigma_m = bias
+            low, high = min(low, bias_m - 3.0 * sigma_m), max(high, bias_m + 3.0 * sigma_m)
         if low == high == 0.0:
             return None
         return low, high
@@ -395,11 +395,18 @@ class UkfEstimator:
     def _ips_refutes(self, innovations, offset_m) -> bool:
         """The newest IPS fixes agree with the filter (their median within 2 sigma of it) and not with a balise read
         `offset_m` away (beyond 4 sigma): the read was wrong."""
-        if len(innovations) < self.params.relocate_after:
+        bias = self._ips_bias(innovations)
+        if bias is None:
             return False
-        bias_m = statistics.median(innovations)
-        sigma_m = 1.25 * self.profile.ips_sigma_m / math.sqrt(len(innovations))
+        bias_m, sigma_m = bias
         return abs(bias_m) <= 2.0 * sigma_m and abs(bias_m - offset_m) > 4.0 * sigma_m
+
+    def _ips_bias(self, innovations):
+        """(median, its 1-sigma) of the newest IPS fixes' innovations (m); None while fewer than relocate_after."""
+        if len(innovations) < self.params.relocate_after:
+            return None
+        return (statistics.median(innovations),
+                1.25 * self.profile.ips_sigma_m / math.sqrt(len(innovations)))   # sigma of a median of normals
 
     def _consensus(self, s_m, d_m, anchors_m):
         """(low_m, high_m, anchor_m, sigma_m) where `locate_fixes` of the gated IPS `anchors_m` agree: the span of
@@ -475,7 +482,7 @@ class UkfEstimator:
             used = _State(None, ips_used=self.params.locate_fixes)
         with_scale = self.params.scale_sigma > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
-        top_mps = 1.5 * self.profile.v_noload_mps
+        top_mps = self._top_mps
         if not 0.0 <= v_mps <= top_mps:
             # the odometer moved faster than the motor can drive (a count that caught up after sticking, a burst):
             # not the train's speed; it starts anywhere in what the train can do

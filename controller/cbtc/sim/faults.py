@@ -170,17 +170,20 @@ def _rollback(sim, train, p):
 
 
 def _encoder_burst(sim, train, p):
-    def burst():   # spurious edges are edges: the newest of them is now
-        train.encoder.distance_m += p["counts"] / train.profile.counts_per_m
-        train.encoder._since_edge_s = 0.0
-    sim.scheduler.call_at(p["at_s"], burst)
+    _jump_encoder(sim, train, p["at_s"], p["counts"] / train.profile.counts_per_m)
 
 
 def _odometer_jump(sim, train, p):
+    _jump_encoder(sim, train, p["at_s"], p["distance_m"])
+
+
+def _jump_encoder(sim, train, at_s, distance_m):
+    """At `at_s` the train's encoder count jumps by `distance_m` (either way): spurious edges are edges, the newest
+    of them is now."""
     def jump():
-        train.encoder.distance_m += p["distance_m"]
+        train.encoder.distance_m += distance_m
         train.encoder._since_edge_s = 0.0
-    sim.scheduler.call_at(p["at_s"], jump)
+    sim.scheduler.call_at(at_s, jump)
 
 
 def _encoder_stuck(sim, train, p):
