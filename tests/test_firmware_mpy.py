@@ -289,3 +289,25 @@ print("OK")
 """
     rc, out, err = run_mpy(script, heap="64K")
     assert rc == 0 and "OK" in out, (out, err)
+
+
+def test_a_one_channel_count_that_goes_back_trips_the_board_under_micropython():
+    """The count drops by 20: the board trips (enc_fail) and refuses a command sealed on a report from before."""
+    script = PRELUDE + """
+now = 0
+for i in range(10):
+    now += 20
+    enc.n += 10
+    unit.step(now)
+before = last_report()
+enc.n -= 20
+now += 20
+unit.step(now)
+assert unit.enc_fail_ms is not None and "count went back" in unit.last_sensor_error, unit.last_sensor_error
+unit.on_message("cbtc/train/A/cmd", wire.encode_command(KEY, "A", 9, 1, 1, before["seq"], 500, 10000, 800, 600, 800),
+                now)
+assert not unit.command_valid(now) and "before the encoder failed" in unit.last_reject, unit.last_reject
+print("OK")
+"""
+    rc, out, err = run_mpy(script, heap="64K")
+    assert rc == 0 and "OK" in out, (out, err)
