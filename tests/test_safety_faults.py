@@ -266,6 +266,23 @@ def test_a_slip_learnt_as_the_scale_does_not_strand_the_train():
     assert summary["stranded"] == 0 and summary["collisions"] == 0 and summary["authority_overruns"] == 0, summary
 
 
+@pytest.mark.parametrize("layout,trains,seed,fault", [
+    # T2 spins 1.42x at 0.6 m/s: its estimate ran ahead of it 0.15 m before the IPS could tell, T1 held 6 mm too many
+    ("itb_square", 6, 180, "encoder_scale:at_s=13.0,duration_s=2.346,factor=1.424,train=T2"),
+    # T1 spins 1.125x, too little for a step; the step at its end re-opened the scale while the board, tripped,
+    # flagged its braking counts as a roll: the scale went to -1 and the train stood for good
+    ("lego_oval", 6, 642, "encoder_scale:at_s=29.2,duration_s=5.893,factor=1.125,train=T1"),
+])
+def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layout, trains, seed, fault):
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config(layout, trains, seed, 40.0, fault_texts=(fault,)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and summary["stranded"] == 0, summary
+
+
 def test_a_count_that_catches_up_after_sticking_is_not_taken_as_travel():
     """T2's encoder sticks for 3.4 s; released, its count catches up 0.13 m in one report. The fresh filter took that
     as 2.4 m/s of travel and put T2 1.4 m ahead of itself (7 collisions); counts beyond what the motor can drive since

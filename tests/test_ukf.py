@@ -21,8 +21,9 @@ from cbtc.estimation.track_ukf import (
     along_track_residual,
     initial_covariance,
     process_noise,
+    tag_read_model,
 )
-from cbtc.estimation.ukf_estimator import UkfEstimator
+from cbtc.estimation.ukf_estimator import UkfEstimator, UkfParams, noise_model
 from cbtc.layout_files import load_layout
 from cbtc.railway import balise
 from cbtc.railway.ips_frame import track_to_ips
@@ -486,6 +487,58 @@ def test_a_balise_read_the_filter_gates_is_covered_as_a_wheel_that_slipped(loop)
     feed(est, reports[:-1] + [dict(reports[-1], tags=[[far.uid, odo_mm, reports[-1]["t_ms"]]])])
     now = est.estimate(controller_s(reports[-1]["t_ms"]))
     assert now.ahead_m == now.behind_m == 0.0 and est.odometer_per_m_low(3.0) > 0.9
+
+
+def _cruise_reports(tag, counts_per_true_m):
+    """A train placed on `tag` that runs at 0.5 m/s, reporting every 50 ms: its wheel counts `counts_per_true_m(k)`
+    odometer m per true m over report k's travel."""
+    t_ms = BOARD_OFFSET_MS
+    base = {"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 500, "duty": 70, "mode": "run", "cseq": -1, "ips": None,
+            "tags": [[tag.uid, 0, t_ms]], "flt": []}
+    reports, odo_m = [base], 0.0
+    for k in range(1, 121):
+        scale = counts_per_true_m(k)
+        odo_m += 0.025 * scale
+        reports.append(dict(base, seq=k, t_ms=t_ms + 50 * k, odo_mm=int(odo_m * 1000), v_mmps=int(500 * scale),
+                            tags=[]))
+    return reports
+
+
+def test_a_speed_step_no_train_can_make_reopens_the_wheel_scale(loop):
+    """At 0.5 m/s the wheel starts to spin, counting 1.3 times the travel: the reported speed jumps by 0.14 m/s
+    between two reports, five times what traction allows. The step is counted, the scale is open again (the
+    controller converts with about the lowest a wheel reads) and the position widens with the travel, faster than a
+    wheel that keeps its scale (no step) on dead reckoning alone."""
+    profile = TrainProfile()
+    tag = loop.tags[2]
+    seen = {}
+    for spin, steps in ((1.3, 1), (1.02, 0)):
+        est = UkfEstimator(loop, profile)
+        reports = _cruise_reports(tag, lambda k: spin if k >= 40 else 1.02)
+        clock = feed(est, reports[:41])
+        low = est.odometer_per_m_low(3.0)
+        feed(est, reports[41:], clock)
+        assert est.counters()["speed_steps"] == steps
+        seen[steps] = low, est.estimate(controller_s(reports[-1]["t_ms"])).sigma_s_m
+    assert seen[1][0] < 0.6 and seen[0][0] > 0.9, seen
+    assert seen[1][1] > 1.5 * seen[0][1], seen
+
+
+def test_a_roll_reported_while_braking_from_speed_leaves_the_scale_alone(loop):
+    """The board flags as a roll every count while braked, also braking from 0.5 m/s; the filter's odometer then
+    stands while its speed did not. With the scale open (after a speed step) that pulled the scale to -1: the train
+    is held still instead, and the scale stays where it was."""
+    profile = TrainProfile()
+    tag = loop.tags[2]
+    reports = _cruise_reports(tag, lambda k: 1.3 if k >= 40 else 1.02)[:45]
+    last = reports[-1]
+    for k in range(1, 11):
+        reports.append(dict(last, seq=last["seq"] + k, t_ms=last["t_ms"] + 50 * k,
+                            odo_mm=last["odo_mm"] + int(30 * k - 1.5 * k * k), v_mmps=max(0, 600 - 60 * k),
+                            flt=["roll"], duty=0, mode="trip"))
+    est = UkfEstimator(loop, profile)
+    feed(est, reports)
+    assert est.counters()["speed_steps"] == 1 and abs(est.scale_error - 0.02) < 0.05, est.scale_error
 
 
 def test_unknown_setting_is_a_config_error(loop):

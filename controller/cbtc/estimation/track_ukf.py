@@ -24,6 +24,7 @@ from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter, unsce
 from scipy.linalg.lapack import dpotrf
 from scipy.stats import chi2
 
+from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
 
 # scaled unscented transform: sigma points at +-2 sigma, all mean weights positive (lambda = 0)
@@ -32,6 +33,8 @@ _BETA = 2.0
 _KAPPA = 0.0
 
 S, V, D, K = 0, 1, 2, 3
+# the scale error a wheel can have: it reads between half and twice the travel (the band a command may state)
+K_LOW, K_HIGH = wire.ODO_MM_PER_M_MIN / 1000.0 - 1.0, wire.ODO_MM_PER_M_MAX / 1000.0 - 1.0
 
 
 @dataclass(frozen=True)
@@ -332,6 +335,26 @@ class TrackUkf:
         self.ukf.P[S, S] += sigma_m ** 2
         self._settle()
 
+    def hold_still(self, sigma_v_mps: float, d_m: float) -> None:
+        """The train's counted motion has no sign (braked, or rolling) and is not travel: its speed is taken as 0
+        (1-sigma `sigma_v_mps`) and its odometer as standing at `d_m`, both uncorrelated, so that neither is explained
+        by the scale."""
+        P = self.ukf.P
+        for i, var in ((V, sigma_v_mps ** 2), (D, self.noise.odo_var_m2)):
+            P[i, :] = 0.0
+            P[:, i] = 0.0
+            P[i, i] = var
+        self.ukf.x[V] = 0.0
+        self.ukf.x[D] = d_m
+        self._settle()
+
+    def reopen_scale(self, sigma: float) -> None:
+        """Let the encoder scale be unknown again to at least 1-sigma `sigma` (its learnt value kept as the mean): the
+        position then widens with the distance travelled until other sensors pin the scale. No-op without a scale."""
+        if self.n > K:
+            self.ukf.P[K, K] = max(float(self.ukf.P[K, K]), sigma * sigma)
+            self._settle()
+
     def _gated_update(self, z, R, gate, hx, **hx_args) -> bool:
         self._draw_points()
         x_before, P_before = self.ukf.x.copy(), self.ukf.P.copy()
@@ -343,9 +366,13 @@ class TrackUkf:
         return True
 
     def _settle(self):
-        """Keep P symmetric and s on the layout; the sigma points are drawn from them when an update needs them."""
+        """Keep P symmetric, s on the layout and the scale error within what a wheel can have (an odometer that
+        stands while the speed does not, as in a roll, would otherwise take the scale to -1); the sigma points are
+        drawn from them when an update needs them."""
         ukf = self.ukf
         ukf.P = 0.5 * (ukf.P + ukf.P.T)
+        if self.n > K:
+            ukf.x[K] = min(max(ukf.x[K], K_LOW), K_HIGH)
         if self.layout.closed:
             ukf.x[S] = self.layout.wrap(ukf.x[S])
         self._points_stale = True

@@ -59,6 +59,9 @@ class UkfParams:
     relocate_after: int = 8           # gated IPS fixes looked at together: where enough agree, the sensors disagree
     locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
     history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
+    step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
+    step_scale_sigma: float = 0.15    # a speed step beyond that re-opens the scale to this 1-sigma (wheel slip/spin:
+    #                                   3 sigma cover a wheel that reads 0.7-1.8 times the travel)
 
     def __post_init__(self):
         for f in fields(self):
@@ -98,7 +101,9 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
 
 _WHEEL_LOWEST = wire.ODO_MM_PER_M_MIN / 1000.0   # odometer m per true m: the least a command may state
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
-_KIND_RANK = {"roll": 0, "odo": 1, "tag": 2, "ips": 3, "range": 4}
+_KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
+_ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
+_MOVING_MPS = 0.05   # speeds from here up are steady enough for a step between two reports to tell of the wheel
 
 
 class _Event:
@@ -110,8 +115,8 @@ class _Event:
     def __init__(self, t_s, kind, data):
         self.t_s = t_s
         self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field);
-        #                       "roll": (step_m, run_m: the roll's steps before); "range": (radio_x_m, radio_y_m,
-        #                       range_m, sigma_m)
+        #                       "roll": (step_m, run_m: the roll's steps before, d_m); "range": (radio_x_m, radio_y_m,
+        #                       range_m, sigma_m); "step": (the step's share of the newest travel m, scale sigma)
         self.data = data
         self.sort_key = (t_s, _KIND_RANK[kind], data)
 
@@ -120,10 +125,10 @@ class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
-                 "consensus", "innovations", "disagree", "disagreements", "tag_offset")
+                 "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
-                 consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None):
+                 consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -139,11 +144,12 @@ class _State:
         self.disagreements = disagreements   # runs of disagreement begun
         self.tag_offset = tag_offset   # where the newest gated balise read puts the train, less the filter's position
         #                                (m); None while no read disagrees, or once the IPS has shown it wrong
+        self.speed_steps = speed_steps  # reported speeds that changed faster than the train can: the wheel slipped
 
     def copy_with(self, snap):
         return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
                       self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
-                      self.tag_offset)
+                      self.tag_offset, self.speed_steps)
 
 
 class UkfEstimator:
@@ -171,6 +177,9 @@ class UkfEstimator:
         self._top_mps = 1.5 * profile.v_noload_mps   # no train runs half again faster than its motor drives it
         self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
         self._roll_run_m = 0.0       # ... of the current roll, report after report
+        self._board_v_mps = None     # the newest report's speed
+        # how fast the measured speed may rise (traction) and fall (the brake) between two reports
+        self._rise_mps2, self._fall_mps2 = profile.accel_max_mps2, profile.beta_e_mps2
 
     # --- counters of the measurements in use --------------------------------------------------------------------------
 
@@ -202,8 +211,9 @@ class UkfEstimator:
         still stops within its authority. A scale error learnt above k_sigma prior sigmas counts as that much (a wheel
         that spun for a while reads true again when it grips); 1 - k_sigma * the prior sigma while unlocated or not
         estimated; the lowest a wheel can read (the band a command may state) while the IPS or a balise puts the
-        train ahead of it, or when the bound learnt falls below that band (a slip learnt as the scale: the train would
-        stand for good, since only travel relearns it); not finite or not positive, it says so to the caller."""
+        train ahead of it, or when the bound learnt falls below that band (a slip learnt as the scale, or a scale re-opened
+        by a speed step: the train would stand for good, since only travel relearns it); not finite, it says so to the
+        caller."""
         state = self._newest
         if state is not None and k_sigma > 0.0 and ((state.disagree is not None and state.disagree[1] > 0.0)
                                                     or (state.tag_offset is not None and state.tag_offset > 0.0)):
@@ -215,7 +225,7 @@ class UkfEstimator:
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
         low = 1.0 + k_m - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
-        return max(low, _WHEEL_LOWEST) if 0.0 < low else low
+        return max(low, _WHEEL_LOWEST) if math.isfinite(low) else low
 
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
@@ -234,6 +244,7 @@ class UkfEstimator:
         return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
                 "disagreements": state.disagreements, "disagreeing": state.disagree is not None,
+                "speed_steps": state.speed_steps,
                 "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
                 **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
@@ -263,12 +274,15 @@ class UkfEstimator:
                     rolled_m, run_m = excess_m, 0.0
                     self._rolled_m += excess_m
                     v_mps = min(v_mps, self._top_mps)
-        self._board_odo_m, self._board_t_s = odo_m, t_s
+        step = self._speed_step(t_s, v_mps) if not rolled_m else None
+        self._board_odo_m, self._board_t_s, self._board_v_mps = odo_m, t_s, v_mps
         if self._first_odo_m is None:
             self._first_odo_m = odo_m
         new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
         if rolled_m:
-            new.append(_Event(t_s, "roll", (rolled_m, run_m)))
+            new.append(_Event(t_s, "roll", (rolled_m, run_m, odo_m - self._rolled_m)))
+        if step is not None:
+            new.append(_Event(t_s, "step", step))
         for entry in report["tags"]:
             tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
             if tag_s_m is None:
@@ -282,6 +296,19 @@ class UkfEstimator:
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
             new.append(_Event(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
+
+    def _speed_step(self, t_s, v_mps):
+        """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report changed by more than
+        traction or the brake can change a train's speed (plus `step_tol_mps`): the wheel began or stopped slipping
+        or spinning, so the encoder's scale is unknown again. None when it did not, or either speed is low."""
+        v0_mps = self._board_v_mps
+        if v0_mps is None or min(v0_mps, v_mps) < _MOVING_MPS or t_s <= self._board_t_s:
+            return None
+        dt_s = t_s - self._board_t_s
+        excess_mps = max(v_mps - v0_mps - self._rise_mps2 * dt_s, v0_mps - v_mps - self._fall_mps2 * dt_s)
+        if excess_mps <= self.params.step_tol_mps:
+            return None
+        return excess_mps * dt_s, self.params.step_scale_sigma
 
     def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
         """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
@@ -335,8 +362,15 @@ class UkfEstimator:
             f.update_odometer(event.data[0])
         elif event.kind == "roll":
             # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
-            step_m, run_m = event.data
+            step_m, run_m, d_m = event.data
             f.widen_position(math.sqrt(step_m * (step_m + 2.0 * run_m)))
+            f.hold_still(_ROLL_MPS, d_m)
+        elif event.kind == "step":
+            # the wheel's scale changed: re-opened, so the position widens with the travel and the IPS and balises
+            # learn it again; the travel since the previous report is in doubt by the step's share
+            new.speed_steps += 1
+            f.widen_position(event.data[0])
+            f.reopen_scale(event.data[1])
         elif event.kind == "tag":
             if f.update_tag(*event.data):
                 new.tags_used += 1
@@ -457,7 +491,7 @@ class UkfEstimator:
     def _locate(self, event):
         """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
         ranges alone cannot. Called only while unlocated, so every IPS event up to this one is one of those fixes."""
-        if event.kind in ("odo", "range", "roll"):
+        if event.kind in ("odo", "range", "roll", "step"):
             return None
         odometer = self._odometer_at(event.t_s)
         if odometer is None:   # no encoder report kept yet to place it against
