@@ -283,6 +283,21 @@ def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layou
     assert violations(summary) == [] and summary["stranded"] == 0, summary
 
 
+def test_fixes_off_by_multipath_are_not_taken_while_a_roll_has_widened_the_position():
+    """T4's fixes are placed 0.34 m ahead (multipath): covered, and T4 trips on its own front bound; its braking
+    counts, flagged roll, widen its position until an offset fix passes the gate and takes the filter 0.22 m ahead of
+    the train, out of its bounds: T3 behind was granted 0.6 m into it (a collision). While the sensors disagree a fix
+    far from the wheel's position is not taken."""
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config("itb_square", 4, 315, 30.0, fault_texts=(
+        "ips_offset:at_s=17.0,duration_s=5.674,offset_m=0.342,train=T4",)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [], summary
+
+
 def test_a_count_that_catches_up_after_sticking_is_not_taken_as_travel():
     """T2's encoder sticks for 3.4 s; released, its count catches up 0.13 m in one report. The fresh filter took that
     as 2.4 m/s of travel and put T2 1.4 m ahead of itself (7 collisions); counts beyond what the motor can drive since

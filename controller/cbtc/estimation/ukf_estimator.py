@@ -396,7 +396,11 @@ class UkfEstimator:
             s_m, d_m = float(f.ukf.x[S]), float(f.ukf.x[D])
             new.innovations = (state.innovations + (circular_offset_m(fix_s_m, s_m, self.layout.loop_length_m),))[
                 -self.params.relocate_after:]
-            if f.update_ips(*event.data):
+            # while the sensors disagree the IPS is as suspect as the wheel: a fix far from the wheel's position is
+            # not taken, however wide the position has grown (a roll, an open scale), or it would take the filter
+            # over to the fixes' story and out of the bounds that cover the wheel's
+            suspect = state.disagree is not None and abs(new.innovations[-1]) > 3.0 * self.profile.ips_sigma_m
+            if not suspect and f.update_ips(*event.data):
                 new.ips_used += 1
                 new.gated, new.consensus = (), None
             else:
