@@ -524,6 +524,17 @@ def test_a_speed_step_no_train_can_make_reopens_the_wheel_scale(loop):
     assert seen[1][1] > 1.5 * seen[0][1], seen
 
 
+@pytest.mark.parametrize("duty,mode,steps", [(70, "run", 1), (0, "stop", 0)])
+def test_a_driven_train_that_slows_faster_than_its_motor_drags_it_slides(loop, duty, mode, steps):
+    """The wheel starts to read 0.85 of the travel at 0.5 m/s: the speed falls 85 mm/s between two reports. Driven at
+    70 % (the motor pulls it on, friction slows it 0.08 m/s^2) that is a slide; braking (1.4 m/s^2) it could be true."""
+    profile = TrainProfile()
+    est = UkfEstimator(loop, profile)
+    reports = [dict(r, duty=duty, mode=mode) for r in _cruise_reports(loop.tags[2], lambda k: 0.85 if k >= 40 else 1.02)]
+    feed(est, reports[:45])
+    assert est.counters()["speed_steps"] == steps
+
+
 def test_a_roll_reported_while_braking_from_speed_leaves_the_scale_alone(loop):
     """The board flags as a roll every count while braked, also braking from 0.5 m/s; the filter's odometer then
     stands while its speed did not. With the scale open (after a speed step) that pulled the scale to -1: the train

@@ -178,6 +178,7 @@ class UkfEstimator:
         self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
         self._roll_run_m = 0.0       # ... of the current roll, report after report
         self._board_v_mps = None     # the newest report's speed
+        self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
         # how fast the measured speed may rise (traction) and fall (the brake) between two reports
         self._rise_mps2, self._fall_mps2 = profile.accel_max_mps2, profile.beta_e_mps2
 
@@ -274,8 +275,10 @@ class UkfEstimator:
                     rolled_m, run_m = excess_m, 0.0
                     self._rolled_m += excess_m
                     v_mps = min(v_mps, self._top_mps)
-        step = self._speed_step(t_s, v_mps) if not rolled_m else None
+        duty_pct = report.get("duty", 0) if report.get("mode") == "run" else 0
+        step = self._speed_step(t_s, v_mps, duty_pct) if not rolled_m else None
         self._board_odo_m, self._board_t_s, self._board_v_mps = odo_m, t_s, v_mps
+        self._board_duty_pct = duty_pct
         if self._first_odo_m is None:
             self._first_odo_m = odo_m
         new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
@@ -297,15 +300,23 @@ class UkfEstimator:
             new.append(_Event(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
 
-    def _speed_step(self, t_s, v_mps):
+    def _speed_step(self, t_s, v_mps, duty_pct):
         """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report changed by more than
         traction or the brake can change a train's speed (plus `step_tol_mps`): the wheel began or stopped slipping
-        or spinning, so the encoder's scale is unknown again. None when it did not, or either speed is low."""
+        or spinning, so the encoder's scale is unknown again. A train driven at both reports (mode run, duty > 0)
+        slows no faster than its motor's drag at the lower duty and friction allow. None when it did not, or either
+        speed is low."""
         v0_mps = self._board_v_mps
         if v0_mps is None or min(v0_mps, v_mps) < _MOVING_MPS or t_s <= self._board_t_s:
             return None
         dt_s = t_s - self._board_t_s
-        excess_mps = max(v_mps - v0_mps - self._rise_mps2 * dt_s, v0_mps - v_mps - self._fall_mps2 * dt_s)
+        fall_mps2 = self._fall_mps2
+        driven_pct = min(duty_pct, self._board_duty_pct)
+        if driven_pct > 0:
+            p = self.profile
+            drag_mps2 = max(0.0, (v0_mps - driven_pct / 100.0 * p.v_noload_mps) / p.motor_tau_s)
+            fall_mps2 = min(fall_mps2, drag_mps2 + p.friction_mps2)
+        excess_mps = max(v_mps - v0_mps - self._rise_mps2 * dt_s, v0_mps - v_mps - fall_mps2 * dt_s)
         if excess_mps <= self.params.step_tol_mps:
             return None
         return excess_mps * dt_s, self.params.step_scale_sigma
