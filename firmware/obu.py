@@ -320,7 +320,8 @@ class OnboardUnit:
         self.v_mmps = v_mmps
         # the encoder against physics and the commanded motion: from the speed at the newest count, braking at the
         # adhesion limit, the train has surely gone _ENC_COUNTS counts further by now; the speed reference has not
-        # asked for enc_slack_mm more than that; no train runs half again faster than its motor drives it unloaded
+        # asked for enc_slack_mm (or the authority left, if less) more than that; no train runs half again faster than
+        # its motor drives it unloaded
         if count != self._ring_n[i - 1]:
             self._v_edge = v_mmps
             self._ref_mm = 0.0
@@ -331,7 +332,9 @@ class OnboardUnit:
             moved_mm = v0 * t_s - b * t_s * t_s / 2 if v0 > b * t_s else v0 * v0 / (2 * b)
             if moved_mm * cfg["counts_per_m"] > _ENC_COUNTS * 1000:
                 self._encoder_failed(now_ms, "no count for %d ms at %d mm/s" % (age_us // 1000, v0))
-        if self._ref_mm * cfg["counts_per_m"] > cfg["enc_slack_mm"] * cfg["counts_per_m"] + _ENC_COUNTS * 1000:
+        # the slack is at most the authority left: a train driven that far with no count may have reached its end
+        slack_mm = min(cfg["enc_slack_mm"], max(0, self.eoa_mm - self.odo_mm))
+        if self._ref_mm * cfg["counts_per_m"] > slack_mm * cfg["counts_per_m"] + _ENC_COUNTS * 1000:
             self._encoder_failed(now_ms, "no count in %d mm the train was driven" % self._ref_mm)
         if abs(v_mmps) * 2 > cfg["v_noload_mmps"] * 3:
             self._encoder_failed(now_ms, "%d mm/s, faster than the motor drives" % v_mmps)

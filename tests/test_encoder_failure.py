@@ -124,6 +124,15 @@ def test_a_frozen_encoder_from_standstill_trips_within_the_slack_of_commanded_tr
     assert "no count in" in unit.last_sensor_error
 
 
+def test_a_frozen_encoder_under_a_short_authority_trips_within_it():
+    """Standing 30 mm short of its end of authority, the train starts on a count that stands still: the reference asks
+    for the 30 mm left and 3 counts, not the full slack of 60 mm, before the board trips, and the train stops 46 mm
+    on (90 mm with the full slack; within a zone's margin beyond the end of authority, not through it)."""
+    unit, s_mm, v, furthest, _, reports = drive("freeze", fail_at_mm=0, eoa_mm=30)
+    assert unit.enc_fails >= 1 and v == 0 and "no count in" in unit.last_sensor_error
+    assert furthest < 30 + 3 + 20, furthest
+
+
 def test_the_hold_ends_and_a_new_command_is_needed():
     unit, s_mm, v, furthest, _, reports = drive("burst", fail_at_mm=500, seconds=4.0)
     assert unit.enc_fail_ms is None and unit.mode == "stop"      # the hold is over; the old command was dropped

@@ -283,6 +283,20 @@ def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layou
     assert violations(summary) == [] and summary["stranded"] == 0, summary
 
 
+def test_a_stuck_encoder_under_a_short_authority_trips_before_the_train_ahead():
+    """T1 stands 0.057 m behind T2 with 16 mm of authority; T2 moves off and T1 starts as its encoder sticks: the board
+    drove the full slack of 60 mm without a count and ran 2 mm into the protected zone. The slack is at most the
+    authority left."""
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config("lego_oval", 4, 555, 32.0, fault_texts=(
+        "encoder_stuck:at_s=27.0,duration_s=4.153,train=T1",)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [], summary
+
+
 def test_fixes_off_by_multipath_are_not_taken_while_a_roll_has_widened_the_position():
     """T4's fixes are placed 0.34 m ahead (multipath): covered, and T4 trips on its own front bound; its braking
     counts, flagged roll, widen its position until an offset fix passes the gate and takes the filter 0.22 m ahead of
