@@ -21,9 +21,8 @@ from cbtc.estimation.track_ukf import (
     along_track_residual,
     initial_covariance,
     process_noise,
-    tag_read_model,
 )
-from cbtc.estimation.ukf_estimator import UkfEstimator, UkfParams, noise_model
+from cbtc.estimation.ukf_estimator import UkfEstimator
 from cbtc.layout_files import load_layout
 from cbtc.railway import balise
 from cbtc.railway.ips_frame import track_to_ips
@@ -514,7 +513,7 @@ def test_a_speed_step_no_train_can_make_reopens_the_wheel_scale(loop):
     seen = {}
     for spin, steps in ((1.3, 1), (1.02, 0)):
         est = UkfEstimator(loop, profile)
-        reports = _cruise_reports(tag, lambda k: spin if k >= 40 else 1.02)
+        reports = _cruise_reports(tag, lambda k, spin=spin: spin if k >= 40 else 1.02)
         clock = feed(est, reports[:41])
         low = est.odometer_per_m_low(3.0)
         feed(est, reports[41:], clock)
@@ -530,7 +529,8 @@ def test_a_driven_train_that_slows_faster_than_its_motor_drags_it_slides(loop, d
     70 % (the motor pulls it on, friction slows it 0.08 m/s^2) that is a slide; braking (1.4 m/s^2) it could be true."""
     profile = TrainProfile()
     est = UkfEstimator(loop, profile)
-    reports = [dict(r, duty=duty, mode=mode) for r in _cruise_reports(loop.tags[2], lambda k: 0.85 if k >= 40 else 1.02)]
+    slid = _cruise_reports(loop.tags[2], lambda k: 0.85 if k >= 40 else 1.02)
+    reports = [dict(r, duty=duty, mode=mode) for r in slid]
     feed(est, reports[:45])
     assert est.counters()["speed_steps"] == steps
 

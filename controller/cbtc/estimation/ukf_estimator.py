@@ -212,9 +212,9 @@ class UkfEstimator:
         still stops within its authority. A scale error learnt above k_sigma prior sigmas counts as that much (a wheel
         that spun for a while reads true again when it grips); 1 - k_sigma * the prior sigma while unlocated or not
         estimated; the lowest a wheel can read (the band a command may state) while the IPS or a balise puts the
-        train ahead of it, or when the bound learnt falls below that band (a slip learnt as the scale, or a scale re-opened
-        by a speed step: the train would stand for good, since only travel relearns it); not finite, it says so to the
-        caller."""
+        train ahead of it, or when the bound learnt falls below that band (a slip learnt as the scale, or a scale
+        re-opened by a speed step: the train would stand for good, since only travel relearns it); not finite, it
+        says so to the caller."""
         state = self._newest
         if state is not None and k_sigma > 0.0 and ((state.disagree is not None and state.disagree[1] > 0.0)
                                                     or (state.tag_offset is not None and state.tag_offset > 0.0)):
