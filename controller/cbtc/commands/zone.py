@@ -78,6 +78,8 @@ def _print_status(zc, bus, now_s):
         spread = ""
         if row["ahead_m"] or row["behind_m"]:   # its sensors disagree: the authority covers both stories
             spread = f" sensors disagree (-{row['behind_m']:.2f}/+{row['ahead_m']:.2f} m, {row['gated_fixes']} gated)"
+        if row["speed_steps"]:   # the wheel's scale was re-opened: it slipped or spun
+            spread += f" wheel slipped x{row['speed_steps']}"
         parts.append(f"{train_id} s={fmt(row['s_m'])}{spread} v={fmt(row['v_mps'])} lim={fmt(row['limit_s_m'])} "
                      f"[{row['limited_by'] or '-'}] "
                      f"{row['mode'] or 'silent'} next={row['next_stop'] or '-'} flt={faults}")
