@@ -474,6 +474,7 @@ class OnboardUnit:
         self.motor.drive(self.duty_pct)
 
     def _brake(self):
+        self._ref_mm = 0.0   # braked, the reference asks no travel: none carried over to the next start
         self.v_ref_mmps = 0.0
         self._integral = 0.0
         self._a_lp = 0.0

@@ -133,6 +133,21 @@ def test_a_frozen_encoder_under_a_short_authority_trips_within_it():
     assert furthest < 30 + 3 + 20, furthest
 
 
+def test_reference_travel_before_a_stop_is_not_carried_into_the_next_start():
+    """A train braked to a stand holds no reference travel over from before it stopped: the next command, 4 mm of
+    authority, does not find 7.8 mm "driven without a count" and trip the board (it did after controller restarts)."""
+    unit, s_mm, v, furthest, _, reports = drive("none", fail_at_mm=1e9, eoa_mm=300, seconds=3.0)
+    assert v == 0 and unit.enc_fails == 0
+    unit._ref_mm = 7.8   # asked at creep speed while static friction held the train, just before it braked
+    unit.step(unit._last_step_ms + PASS_MS)
+    report = reports[-1]
+    unit.on_message(wire.topic_command("A"), wire.encode_command(
+        KEY, "A", 9, 1, 2, report["seq"], 600, report["odo_mm"] + 4, 10000, 600, 800), unit._last_step_ms)
+    for k in range(1, 20):
+        unit.step(unit._last_step_ms + PASS_MS)
+    assert unit.enc_fails == 0
+
+
 def test_the_hold_ends_and_a_new_command_is_needed():
     unit, s_mm, v, furthest, _, reports = drive("burst", fail_at_mm=500, seconds=4.0)
     assert unit.enc_fail_ms is None and unit.mode == "stop"      # the hold is over; the old command was dropped
