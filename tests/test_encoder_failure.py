@@ -143,7 +143,7 @@ def test_reference_travel_before_a_stop_is_not_carried_into_the_next_start():
     report = reports[-1]
     unit.on_message(wire.topic_command("A"), wire.encode_command(
         KEY, "A", 9, 1, 2, report["seq"], 600, report["odo_mm"] + 4, 10000, 600, 800), unit._last_step_ms)
-    for k in range(1, 20):
+    for _ in range(19):
         unit.step(unit._last_step_ms + PASS_MS)
     assert unit.enc_fails == 0
 
