@@ -30,6 +30,7 @@ class OdometryEstimator:
         self._var_ref_m2 = 0.0
         self._last = None          # (t_s, odo_mm, v_mps) of the newest report
         self.rejected_ips = 0
+        self.speed_steps = 0       # speed steps are not looked for here (the UKF estimator counts them)
         self.locate_fixes = 3      # IPS fixes that must agree before the IPS alone places the train
         self._fix_anchors = []     # fix position less odometer (m) of the fixes seen while unplaced
         self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout

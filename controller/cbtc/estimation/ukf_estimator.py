@@ -29,6 +29,7 @@ from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.estimation.track_ukf import (
+    K_LOW,
     D,
     K,
     NoiseModel,
@@ -38,7 +39,6 @@ from cbtc.estimation.track_ukf import (
     initial_covariance,
     tag_read_model,
 )
-from cbtc.protocol import wire
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
@@ -99,7 +99,7 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
     )
 
 
-_WHEEL_LOWEST = wire.ODO_MM_PER_M_MIN / 1000.0   # odometer m per true m: the least a command may state
+_WHEEL_LOWEST = 1.0 + K_LOW   # odometer m per true m: the least a wheel reads (and a command may state)
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
 _KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
 _ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
@@ -179,8 +179,6 @@ class UkfEstimator:
         self._roll_run_m = 0.0       # ... of the current roll, report after report
         self._board_v_mps = None     # the newest report's speed
         self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
-        # how fast the measured speed may rise (traction) and fall (the brake) between two reports
-        self._rise_mps2, self._fall_mps2 = profile.accel_max_mps2, profile.beta_e_mps2
 
     # --- counters of the measurements in use --------------------------------------------------------------------------
 
@@ -192,6 +190,11 @@ class UkfEstimator:
     def unknown_tags(self):
         """Tag reads with neither a usable telegram nor an entry in the layout."""
         return self.balises.counts["unknown"]
+
+    @property
+    def speed_steps(self):
+        """Reported speeds that changed faster than the train can (the wheel began or stopped slipping)."""
+        return self._newest.speed_steps if self._newest else 0
 
     @property
     def rejected_ips(self):
@@ -310,13 +313,13 @@ class UkfEstimator:
         if v0_mps is None or min(v0_mps, v_mps) < _MOVING_MPS or t_s <= self._board_t_s:
             return None
         dt_s = t_s - self._board_t_s
-        fall_mps2 = self._fall_mps2
+        p = self.profile
+        fall_mps2 = p.beta_e_mps2
         driven_pct = min(duty_pct, self._board_duty_pct)
         if driven_pct > 0:
-            p = self.profile
             drag_mps2 = max(0.0, (v0_mps - driven_pct / 100.0 * p.v_noload_mps) / p.motor_tau_s)
             fall_mps2 = min(fall_mps2, drag_mps2 + p.friction_mps2)
-        excess_mps = max(v_mps - v0_mps - self._rise_mps2 * dt_s, v0_mps - v_mps - fall_mps2 * dt_s)
+        excess_mps = max(v_mps - v0_mps - p.accel_max_mps2 * dt_s, v0_mps - v_mps - fall_mps2 * dt_s)
         if excess_mps <= self.params.step_tol_mps:
             return None
         return excess_mps * dt_s, self.params.step_scale_sigma

@@ -573,7 +573,7 @@ class ZoneController:
                 "behind_m": None if est is None else round(est.behind_m, 4),
                 "gated_fixes": st.estimator.rejected_ips,
                 # reported speeds that changed faster than the train can: the wheel began or stopped slipping
-                "speed_steps": getattr(st.estimator, "counters", dict)().get("speed_steps", 0),
+                "speed_steps": st.estimator.speed_steps,
                 "gap_measured_m": None if st.rng_gap is None else round(st.rng_gap[1], 4),
                 "gap_disagrees": st.gap_alarm,
             }
