@@ -285,6 +285,26 @@ def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layou
         assert sim.zc.snapshot(sim.scheduler.now_s())["T2"]["speed_steps"] >= 1
 
 
+@pytest.mark.parametrize("layout,trains,seed,duration_s,fault", [
+    # T3 stands as its wheel starts to spin 1.41x, then starts: traction allows 0.6 m/s^2, the wheel shows 0.85; its
+    # estimate ran 0.14 m ahead of it before the IPS could tell and T2 held 0.058 m past T3's tail
+    ("itb_square", 4, 312, 30.0, "encoder_scale:at_s=20.3,duration_s=7.06,factor=1.414,train=T3"),
+    # T2, located afresh after its board tripped on an encoder that read 0.72x, started with the scale as before
+    ("lego_oval", 4, 25, 30.0, "encoder_scale:at_s=22.8,duration_s=5.553,factor=0.718,train=T2"),
+    # T2 learnt a slide of 0.8x as its scale; the wheel healed while it stood and its estimate ran 9 cm ahead of it
+    ("lego_oval", 6, 49, 30.0, "encoder_scale:at_s=16.9,duration_s=3.658,factor=0.802,train=T2"),
+])
+def test_a_wheel_that_spins_or_slides_gradually_is_caught_by_the_speed_envelope(layout, trains, seed, duration_s,
+                                                                                 fault):
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config(layout, trains, seed, duration_s, fault_texts=(fault,)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and summary["stranded"] == 0, summary
+
+
 def test_a_stuck_encoder_under_a_short_authority_trips_before_the_train_ahead():
     """T1 stands 0.057 m behind T2 with 16 mm of authority; T2 moves off and T1 starts as its encoder sticks: the board
     drove the full slack of 60 mm without a count and ran 2 mm into the protected zone. The slack is at most the

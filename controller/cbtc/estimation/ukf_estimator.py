@@ -28,6 +28,7 @@ from scipy.linalg.lapack import dpotrf
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.fix_consensus import agreeing_anchor
+from cbtc.estimation.speed_envelope import SpeedEnvelope
 from cbtc.estimation.track_ukf import (
     K_LOW,
     D,
@@ -62,6 +63,8 @@ class UkfParams:
     step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
     step_scale_sigma: float = 0.15    # a speed step beyond that re-opens the scale to this 1-sigma (wheel slip/spin:
     #                                   3 sigma cover a wheel that reads 0.7-1.8 times the travel)
+    motor_tol: float = 0.10           # the motor's no-load speed, friction and traction are known within this share
+    step_window_s: float = 1.0        # reported speeds are held to what the motor allows over this long (s)
 
     def __post_init__(self):
         for f in fields(self):
@@ -179,6 +182,15 @@ class UkfEstimator:
         self._roll_run_m = 0.0       # ... of the current roll, report after report
         self._board_v_mps = None     # the newest report's speed
         self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
+        self._envelope = SpeedEnvelope(profile, self.params.motor_tol, self.params.step_window_s)
+        self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
+
+    def distrust_wheel(self) -> None:
+        """Locate the train with its encoder scale open (1-sigma `step_scale_sigma`): after the board named an encoder
+        fault, whatever the wheel read before says nothing of how it reads now. No-op once located or without a
+        scale."""
+        if not self.localized and self.params.scale_sigma > 0:
+            self._scale_sigma0 = max(self.params.scale_sigma, self.params.step_scale_sigma)
 
     # --- counters of the measurements in use --------------------------------------------------------------------------
 
@@ -224,7 +236,7 @@ class UkfEstimator:
             return _WHEEL_LOWEST   # the IPS or a balise puts the train ahead of its wheel: it may read short, by any
             #                        amount
         if state is None or len(state.snap[1]) <= K:
-            return 1.0 - k_sigma * self.params.scale_sigma
+            return max(1.0 - k_sigma * self._scale_sigma0, _WHEEL_LOWEST)
         _t, x, P = state.snap
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
@@ -280,6 +292,10 @@ class UkfEstimator:
                     v_mps = min(v_mps, self._top_mps)
         duty_pct = report.get("duty", 0) if report.get("mode") == "run" else 0
         step = self._speed_step(t_s, v_mps, duty_pct) if not rolled_m else None
+        if rolled_m or step is not None:
+            self._envelope.reset()
+        else:
+            step = self._drifted(t_s, v_mps, duty_pct if "mode" in report else None)
         self._board_odo_m, self._board_t_s, self._board_v_mps = odo_m, t_s, v_mps
         self._board_duty_pct = duty_pct
         if self._first_odo_m is None:
@@ -323,6 +339,26 @@ class UkfEstimator:
         if excess_mps <= self.params.step_tol_mps:
             return None
         return excess_mps * dt_s, self.params.step_scale_sigma
+
+    def _drifted(self, t_s, v_mps, duty_pct):
+        """(travel in doubt m, scale 1-sigma) when the reported speeds, read with the scale learnt, left what the
+        motor could give the train at its duties (None: not reported) over the last `step_window_s` by more than
+        `step_tol_mps`
+        (cbtc.estimation.speed_envelope): a wheel that began to spin or slide gradually. None while they did not."""
+        scale = self.scale_error or 0.0
+        found = self._envelope.observe(t_s, v_mps / (1.0 + scale), duty_pct)
+        if found is None or found[0] <= self.params.step_tol_mps or self._scale_open():
+            return None
+        self._envelope.reset()
+        excess_mps, over_s = found
+        return excess_mps * over_s, self.params.step_scale_sigma
+
+    def _scale_open(self) -> bool:
+        """The scale is still as open as a step left it (half its 1-sigma or more): a wheel already in doubt."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K:
+            return False
+        return float(state.snap[2][K, K]) >= (0.5 * self.params.step_scale_sigma) ** 2
 
     def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
         """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
@@ -426,8 +462,17 @@ class UkfEstimator:
                 new.tag_offset = None
             if new.disagree is not None and state.disagree is None:
                 new.disagreements += 1
+        self._keep_wheel_in_doubt(f)
         new.snap = f.snapshot()
         return new
+
+    def _keep_wheel_in_doubt(self, f):
+        """A scale learnt beyond three prior sigmas is a wheel that slips or spins, which stops when it will: the
+        scale stays open to a third of its error, so that the position covers a wheel that reads true again."""
+        if f.n > K:
+            error = abs(float(f.ukf.x[K]))
+            if error > 3.0 * self.params.scale_sigma and float(f.ukf.P[K, K]) < (error / 3.0) ** 2:
+                f.reopen_scale(error / 3.0)
 
     def _disagreement(self, consensus, innovations):
         """(low_m, high_m) that the IPS may put the train behind or ahead of the filter's position: from the gated
@@ -532,7 +577,7 @@ class UkfEstimator:
                 return None
             s_m, sigma_s_m = placed[0] + d_m, placed[1]
             used = _State(None, ips_used=self.params.locate_fixes)
-        with_scale = self.params.scale_sigma > 0
+        with_scale = self._scale_sigma0 > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
         top_mps = self._top_mps
         if not 0.0 <= v_mps <= top_mps:
@@ -540,7 +585,7 @@ class UkfEstimator:
             # not the train's speed; it starts anywhere in what the train can do
             v_mps, sigma_v_mps = min(max(v_mps, 0.0), top_mps), top_mps
         x0 = [self.layout.wrap(s_m), v_mps, d_m] + ([0.0] if with_scale else [])
-        P0 = initial_covariance(len(x0), sigma_s_m, sigma_v_mps, 0.002, self.params.scale_sigma)
+        P0 = initial_covariance(len(x0), sigma_s_m, sigma_v_mps, 0.002, self._scale_sigma0)
         self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
         used.snap = self._filter.snapshot()
         return used

@@ -1,0 +1,98 @@
+"""Whether a train's reported speeds are ones its motor could have given it: a wheel that spins or slides changes
+what the encoder reads by a factor, gradually enough for no single report to show it, but over a second of driving
+the speed leaves what traction, the motor and the brake allow.
+
+Pure: reports in (board time, speed as the filter believes it, duty), a verdict out. From anchors laid along the
+reports (one per `ANCHOR_S`, kept `window_s`), the speed is carried forward interval by interval under the fastest
+and the slowest the train could have gone at the duties it reported (the first-order motor of
+cbtc.railway.physics, its no-load speed, friction and traction known within `motor_tol`); the caller takes a
+reported speed outside a band by more than its tolerance for a wheel that no longer reads the travel. The duties of
+the report before count as well, since the speed measure lags the motor.
+"""
+
+import math
+
+ANCHOR_S = 0.1      # a new anchor every this many seconds of reports
+JUDGE_S = 0.25      # a band is judged once this old: over shorter spans the speed measure's lag and the duty's
+#                   changes between reports would pass for a wheel's
+MOVING_MPS = 0.1    # speeds from here up are steady enough to anchor and to judge (the speed measure lags below)
+
+
+def ride_mps(v0_mps, dt_s, v_ss_mps, tau_s, up_mps2, down_mps2):
+    """Speed after `dt_s` of dv/dt = (v_ss - v) / tau clamped to [-down, up], from `v0_mps` (exact, piecewise)."""
+    rate = (v_ss_mps - v0_mps) / tau_s
+    if rate > up_mps2:
+        v_knee = v_ss_mps - up_mps2 * tau_s
+        t_knee = (v_knee - v0_mps) / up_mps2
+        if dt_s <= t_knee:
+            return v0_mps + up_mps2 * dt_s
+        v0_mps, dt_s = v_knee, dt_s - t_knee
+    elif rate < -down_mps2:
+        v_knee = v_ss_mps + down_mps2 * tau_s
+        t_knee = (v0_mps - v_knee) / down_mps2
+        if dt_s <= t_knee:
+            return v0_mps - down_mps2 * dt_s
+        v0_mps, dt_s = v_knee, dt_s - t_knee
+    return v_ss_mps + (v0_mps - v_ss_mps) * math.exp(-dt_s / tau_s)
+
+
+class SpeedEnvelope:
+    """Anchored bounds on a train's speed from its duties; `observe` says by how much a report left them."""
+
+    def __init__(self, profile, motor_tol: float, window_s: float):
+        self.profile = profile
+        self.motor_tol = motor_tol
+        self.window_s = window_s
+        self._anchors = []      # [t0_s, low_mps, high_mps]: the band carried from a report at t0_s
+        self._last = None       # (t_s, duty_pct, duty before it) of the previous report
+
+    def reset(self) -> None:
+        """Forget the anchors (after a step was found, or speeds that mean nothing: a roll, a burst)."""
+        self._anchors = []
+        self._last = None
+
+    def observe(self, t_s: float, v_mps: float, duty_pct: float):
+        """Carry the bands to board time `t_s`, where the train reports `v_mps` (m/s, as the filter reads the wheel)
+        driven at `duty_pct` (0 unless in mode run; None when not known); return (excess m/s, seconds it built over)
+        for the largest departure from a band judged, or None while none is."""
+        last = self._last
+        if last is not None and t_s <= last[0]:
+            return None
+        worst = None
+        if last is not None:
+            # the speed measure lags the motor by up to a report: the interval's duties and the one before it
+            t0_s, d0_pct, d_before_pct = last
+            dt_s = t_s - t0_s
+            duties = (d_before_pct, d0_pct, duty_pct)
+            if None in duties:   # the duty is not known: traction and the brake alone
+                low_fn, high_fn = self._limits(0, 100)
+            else:
+                low_fn, high_fn = self._limits(min(duties), max(duties))
+            for anchor in self._anchors:
+                anchor[1] = max(0.0, low_fn(anchor[1], dt_s))
+                anchor[2] = high_fn(anchor[2], dt_s)
+                if t_s - anchor[0] < JUDGE_S:
+                    continue
+                excess = v_mps - anchor[2]
+                if v_mps >= MOVING_MPS:
+                    excess = max(excess, anchor[1] - v_mps)
+                if worst is None or excess > worst[0]:
+                    worst = (excess, t_s - anchor[0])
+        self._last = (t_s, duty_pct, last[1] if last is not None else duty_pct)
+        self._anchors = [a for a in self._anchors if t_s - a[0] <= self.window_s]
+        if v_mps >= MOVING_MPS and (not self._anchors or t_s - self._anchors[-1][0] >= ANCHOR_S):
+            self._anchors.append([t_s, v_mps, v_mps])
+        return worst
+
+    def _limits(self, d_low_pct, d_high_pct):
+        """(slowest, fastest) speed functions (v0, dt) over an interval between reports driven at these duties."""
+        p, u = self.profile, self.motor_tol
+        if d_low_pct > 0:
+            # driven all along: the motor pulls towards its steady speed at the duty, within the tolerances
+            v_low = d_low_pct / 100.0 * p.v_noload_mps * (1.0 - u) - p.friction_mps2 * (1.0 + u) * p.motor_tau_s
+            v_high = d_high_pct / 100.0 * p.v_noload_mps * (1.0 + u)
+            return (lambda v, dt: ride_mps(v, dt, v_low, p.motor_tau_s, p.accel_max_mps2 * (1.0 - u), p.beta_e_mps2),
+                    lambda v, dt: ride_mps(v, dt, v_high, p.motor_tau_s, p.accel_max_mps2, p.beta_e_mps2))
+        # not driven at one end at least: braked, coasting or driven somewhere in between, as hard as traction allows
+        up_mps2 = p.accel_max_mps2 if d_high_pct > 0 else 0.0
+        return (lambda v, dt: v - p.beta_e_mps2 * dt, lambda v, dt: v + up_mps2 * dt)
