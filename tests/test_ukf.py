@@ -639,3 +639,25 @@ def test_filter_steps_equal_filterpy_reference():
         ref.update(np.array([px + 0.01, py - 0.01]), R=np.eye(2) * noise.ips_var_m2, hx=hx_ips, layout=layout)
         assert f.update_ips(px + 0.01, py - 0.01)
         assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)
+
+
+def test_every_filter_setting_is_in_the_fusion_doc_with_its_default():
+    """docs/fusion.md's settings table names every UkfParams field with the default the code has."""
+    import dataclasses
+    import pathlib
+    import re
+
+    from cbtc.estimation.ukf_estimator import UkfParams
+
+    doc = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "fusion.md").read_text()
+    rows = {}
+    for line in doc.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2:
+            names = re.findall(r"`(\w+)`", cells[0])
+            values = re.findall(r"[-\d.e]+", cells[1])
+            if len(names) == len(values):
+                rows.update(zip(names, values))
+    for f in dataclasses.fields(UkfParams):
+        assert f.name in rows, f"docs/fusion.md does not list {f.name}"
+        assert math.isclose(float(rows[f.name]), f.default), (f.name, rows[f.name], f.default)
