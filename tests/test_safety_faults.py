@@ -305,6 +305,24 @@ def test_a_wheel_that_spins_or_slides_gradually_is_caught_by_the_speed_envelope(
     assert violations(summary) == [] and summary["stranded"] == 0, summary
 
 
+@pytest.mark.parametrize("layout,trains,seed,fault", [
+    # T6 at 0.59 m/s under an authority that ends 0.1 m behind T5's tail: its wheel reads 0.71x from now on, so the
+    # authority its board holds, in odometer units, reaches 0.05 m past that tail
+    ("lego_oval", 6, 39, "encoder_scale:at_s=24.4,duration_s=3.717,factor=0.707,train=T6"),
+    # T5 stands behind T4 with a long authority as its wheel starts to read 0.82x
+    ("itb_square", 5, 56, "encoder_scale:at_s=14.7,duration_s=7.217,factor=0.822,train=T5"),
+])
+def test_a_wheel_that_begins_to_slide_under_a_long_authority_still_stops_within_the_margin(layout, trains, seed,
+                                                                                         fault):
+    from cbtc.sim.recorder import violations
+    from cbtc.sim.runs import sim_config
+
+    sim = Simulation(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and summary["stranded"] == 0, summary
+
+
 def test_a_stuck_encoder_under_a_short_authority_trips_before_the_train_ahead():
     """T1 stands 0.057 m behind T2 with 16 mm of authority; T2 moves off and T1 starts as its encoder sticks: the board
     drove the full slack of 60 mm without a count and ran 2 mm into the protected zone. The slack is at most the
@@ -346,3 +364,35 @@ def test_a_count_that_catches_up_after_sticking_is_not_taken_as_travel():
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["rolled_onto"] == 0, summary
+
+
+@pytest.mark.parametrize("safe_m,reach_mm", [(0.1, 101), (0.2, 202), (0.5, 420), (1.0, 770)])
+def test_the_authority_on_board_ends_within_the_margin_for_a_wheel_that_begins_to_slide(safe_m, reach_mm):
+    """The end of authority in odometer units is the authority at the lowest scale the wheel reads (1.01 here), and
+    no more than a wheel reading 0.7 of the travel from now on would take to the margin (0.1 m) beyond it: short
+    authorities, as in following, are untouched; long ones lose what such a slide would add."""
+    from cbtc.authority.moving_block import MovingBlockPolicy
+    from cbtc.zone.controller import TrainSetup, ZoneController
+
+    class Quiet:
+        def publish(self, *a, **k):
+            pass
+
+        def subscribe(self, *a, **k):
+            pass
+
+    class Wheel:
+        def odometer_per_m_low(self, _k_sigma):
+            return 1.01
+
+        def estimate(self, _now_s):
+            return None
+
+    zc = ZoneController(load_layout("itb_square"), [TrainSetup("A", b"k" * 16)], Quiet(), lambda: 10.0,
+                        MovingBlockPolicy())
+    state = zc.trains["A"]
+    state.estimator = Wheel()
+    state.report = {"odo_mm": 5000, "v_mmps": 400, "boot": 1, "seq": 7}
+    state.report_t_s = 10.0
+    zc._command(state, safe_m, None, 0.6, 0.5, 0.8, 10.0)
+    assert state.eoa_mm - 5000 == reach_mm

@@ -15,6 +15,7 @@ import math
 ANCHOR_S = 0.1      # a new anchor every this many seconds of reports
 JUDGE_S = 0.25      # a band is judged once this old: over shorter spans the speed measure's lag and the duty's
 #                   changes between reports would pass for a wheel's
+MOTOR_GAP_S = 0.065  # reports further apart than this are held to traction and the brake alone
 MOVING_MPS = 0.1    # speeds from here up are steady enough to anchor and to judge (the speed measure lags below)
 
 
@@ -64,7 +65,9 @@ class SpeedEnvelope:
             t0_s, d0_pct, d_before_pct = last
             dt_s = t_s - t0_s
             duties = (d_before_pct, d0_pct, duty_pct)
-            if None in duties:   # the duty is not known: traction and the brake alone
+            if None in duties or dt_s > MOTOR_GAP_S:
+                # the duty is not known, or reports too far apart for their duties to tell what the motor did in
+                # between (the speed loop runs every 20 ms): traction and the brake alone
                 low_fn, high_fn = self._limits(0, 100)
             else:
                 low_fn, high_fn = self._limits(min(duties), max(duties))

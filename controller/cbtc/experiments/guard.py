@@ -2,8 +2,10 @@
 
 Paper scenario (train A ahead of B on the square loop, station stops). Train A's sensors fail together in the dangerous
 direction: its encoder counts run `encoder_fault` times fast and its IPS places it `ips_offset_m` ahead of where it
-stands. The controller then believes A is well ahead, so B's movement authority runs past A's real tail, and when A
-stops at a station B runs into it. With train-to-train ranging on (cbtc.ranging.transponder, cbtc.sim.ranging), B's
+stands; its profile was calibrated with that same encoder, so the controller believes its motor and traction that
+many times stronger too and its speeds look like ones the motor gives (cbtc.estimation.speed_envelope). The
+controller then believes A is well ahead, so B's movement authority runs past A's real tail, and when A stops at a
+station B runs into it. With train-to-train ranging on (cbtc.ranging.transponder, cbtc.sim.ranging), B's
 OnboardUnit measures the true gap and brakes on its own (the collision guard in firmware/obu.py); the zone controller is
 told not to use the measured gap for authority here (it only raises its "picture disagrees" alarm), so the guard alone
 is what prevents the collision.
@@ -27,6 +29,11 @@ def faulty_leader_simulation(layout, seed, guard, duration_s=60.0, ranging=None,
     leader = sim.trains[0]
     leader.encoder.scale_fault = encoder_fault
     leader.ips.offset_m = ips_offset_m
+    p = leader.profile
+    state = sim.zc.trains[leader.train_id]
+    state.setup.profile = p.with_changes(v_noload_mps=p.v_noload_mps * encoder_fault,
+                                         accel_max_mps2=p.accel_max_mps2 * encoder_fault)
+    state.relocate(type(state.estimator)(layout, state.setup.profile))
     sim.zc.use_measured_gap = False   # the onboard guard alone: the controller only raises its alarm
     return sim
 

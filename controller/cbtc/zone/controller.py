@@ -492,7 +492,11 @@ class ZoneController:
             brake_m = v_mps * profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
             eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
         else:
-            eoa_mm = report["odo_mm"] + int(safe_m * scale_low * 1000.0)   # metres along the track into odometer mm
+            # metres along the track into odometer mm at the lowest scale the wheel reads, and no further than a wheel
+            # that began to slide by slide_share now would carry the train into the margin beyond (at a long
+            # authority the slide's share is more than the margin)
+            reach_m = min(safe_m * scale_low, (1.0 - self.params.slide_share) * (safe_m + self.params.margin_m))
+            eoa_mm = report["odo_mm"] + int(reach_m * 1000.0)
         if state.eoa_mm is not None and (safe_m is None or self._leader_stale(state, now_s)):
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
