@@ -7,7 +7,9 @@ Adding a command is adding a module and one name to COMMANDS.
 import argparse
 import importlib
 import logging
+import os
 import sys
+from importlib import metadata
 
 from cbtc.errors import CbtcError
 
@@ -26,11 +28,19 @@ COMMANDS = (
 )
 
 
+def _version() -> str:
+    try:
+        return metadata.version("lego-cbtc")
+    except metadata.PackageNotFoundError:   # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cbtc",
         description="LEGO-scale Communication-Based Train Control: simulate, control, measure, flash.",
     )
+    parser.add_argument("--version", action="version", version=f"cbtc {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
@@ -50,6 +60,19 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"cbtc {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 0
+
+
+def _quiet_stdout() -> None:
+    """The reader of our output went away (`cbtc layout show X | head`): what is left to print goes nowhere, so the
+    command ends quietly, as the standard tools do, and Python's flush at exit raises nothing either."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (AttributeError, OSError, ValueError):   # not a real file (a test's capture)
+        sys.stdout = open(os.devnull, "w")   # noqa: SIM115 -- lives until exit
 
 
 if __name__ == "__main__":
