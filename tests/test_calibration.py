@@ -59,6 +59,16 @@ def test_calibrate_command_on_recorded_files(tmp_path, capsys):
     assert "1043.5 counts per m" in out and "counts_per_m = 1044\n" in out   # the whole number a board takes
     assert cli_main(["calibrate", "tags", "--reports", str(run), "--start-s-m", "0.25"]) == 0
     assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
+    # a tag that carries a telegram is read as four fields, as reports carry them now
+    run4 = tmp_path / "run4.jsonl"
+    run4.write_text("\n".join(json.dumps(r) for r in (
+        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5, "0123456789abcdef0123456789abcdef"]]})))
+    assert cli_main(["calibrate", "tags", "--reports", str(run4), "--start-s-m", "0.25"]) == 0
+    assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
+    odd_tags = tmp_path / "odd_tags.jsonl"
+    odd_tags.write_text(json.dumps({"odo_mm": 0, "tags": [["DEADBEEF"]]}))
+    assert cli_main(["calibrate", "tags", "--reports", str(odd_tags)]) == 2
+    assert "odd_tags.jsonl report 1: 'tags' must be" in capsys.readouterr().err
     points = tmp_path / "points.csv"
     points.write_text("ips_x_mm,ips_y_mm,track_x_m,track_y_m\n0,0,1,2\n1000,0,1,3\n0,1000,0,2\n")
     assert cli_main(["calibrate", "ips", "--points", str(points)]) == 0

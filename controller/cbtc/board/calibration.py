@@ -58,7 +58,8 @@ def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None):
     for report in reports:
         if start_odo_mm is None:
             start_odo_mm = report["odo_mm"]
-        for uid, odo_mm, _t_ms in report.get("tags", []):
+        for entry in report.get("tags", []):   # [uid, odo_mm, t_ms] and, from a tag with a telegram, its telegram
+            uid, odo_mm = entry[0], entry[1]
             s_m = start_s_m + (odo_mm - start_odo_mm) / 1000.0
             if loop_m:
                 s_m %= loop_m

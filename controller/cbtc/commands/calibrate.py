@@ -47,6 +47,12 @@ def _reports(path):
         raise ConfigError(f"cannot read {path}: {exc.strerror}") from None
     if not reports or any(not isinstance(r, dict) or "odo_mm" not in r for r in reports):
         raise ConfigError(f"{path}: expected JSON lines of reports with an 'odo_mm' field")
+    for number, report in enumerate(reports, 1):
+        tags = report.get("tags", [])
+        if not isinstance(tags, list) or any(not isinstance(t, list) or len(t) < 3 or not isinstance(t[0], str)
+                                             or not isinstance(t[1], (int, float)) for t in tags):
+            raise ConfigError(f"{path} report {number}: 'tags' must be a list of [uid, odo_mm, t_ms, ...] entries "
+                              f"(docs/protocol.md), got {tags!r}")
     return reports
 
 
