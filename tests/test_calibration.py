@@ -61,8 +61,9 @@ def test_calibrate_command_on_recorded_files(tmp_path, capsys):
     assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
     # a tag that carries a telegram is read as four fields, as reports carry them now
     run4 = tmp_path / "run4.jsonl"
+    telegram = "0123456789abcdef" * 2
     run4.write_text("\n".join(json.dumps(r) for r in (
-        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5, "0123456789abcdef0123456789abcdef"]]})))
+        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5, telegram]]})))
     assert cli_main(["calibrate", "tags", "--reports", str(run4), "--start-s-m", "0.25"]) == 0
     assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
     odd_tags = tmp_path / "odd_tags.jsonl"
