@@ -58,6 +58,7 @@ def test_too_many_trains_is_a_clear_error(capsys):
 
 @pytest.mark.parametrize("argv,named", [(["--report-ms", "50,x"], "--report-ms: 'x'"),
                                         (["--blocks", "1"], "--blocks: '1'"),
+                                        (["--blocks", "2,4"], "--blocks 2: fixed block: 2 trains on the 2 blocks"),
                                         (["--code-ber", "0.7"], "--code-ber")])
 def test_compare_names_a_bad_setting_before_running(capsys, argv, named):
     assert cbtc_main(["compare"] + argv) == 2

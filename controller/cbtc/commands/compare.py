@@ -6,6 +6,7 @@ from cbtc.errors import ConfigError
 from cbtc.experiments.headway import (
     PAPER,
     block_sweep,
+    check_block_counts,
     reductions,
     run_paper_systems,
     steady_following,
@@ -76,9 +77,10 @@ def run(args):
     report_periods = _number_list(args.report_ms, "--report-ms", int, 1, 10000, "a whole number >= 1", "100,20")
     speeds = _number_list(args.follow_mps, "--follow-mps", float, 0.05, 0.55, "a speed in [0.05, 0.55] m/s",
                           "0.3,0.5")
-    counts = _number_list(args.blocks, "--blocks", int, 2, 10000, "a whole number >= 2", "2,4,8")
+    counts = _number_list(args.blocks, "--blocks", int, 2, 10000, "a whole number >= 2", "3,4,8")
     SpeedCodeChannel(args.code_ber)
     layout = load_layout(args.layout)
+    check_block_counts(layout, counts, seed=args.seed)
     systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps, code_ber=args.code_ber)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
     following = steady_following(layout, seed=args.seed)

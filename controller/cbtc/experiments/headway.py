@@ -7,6 +7,7 @@ the tests and anyone's notebook get the same numbers.
 import numpy as np
 
 from cbtc.authority.rules import AuthorityParams, minimum_gap_m
+from cbtc.errors import ConfigError
 from cbtc.firmware import obu
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
@@ -160,6 +161,18 @@ def _overhead_budget(config, profile, basis, steady, t, cseq, eoa_ahead_m, leade
     terms = {"leader_moved_m": moved_m, "k_sigma_m": k_sigma_m, "estimates_m": estimates_m,
              "stop_window_m": np.full(moved_m.shape, window_m), "inside_curve_m": inside_m}
     return {name: round(float(np.mean(values)), 4) for name, values in terms.items()}
+
+
+def check_block_counts(layout, counts, seed=0):
+    """Raise ConfigError naming the first block count of `counts` on which the paper scenario's fixed block cannot
+    run (too few blocks for its trains, or blocks shorter than a train): checked before any run starts."""
+    from cbtc.zone.factory import make_policy
+    for count in counts:
+        config = paper_scenario(layout, seed=seed, policy="fixed_block", policy_options={"blocks": int(count)})
+        try:
+            make_policy(config)
+        except ConfigError as exc:
+            raise ConfigError(f"--blocks {count}: {exc}") from None
 
 
 def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf"):

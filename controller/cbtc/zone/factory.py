@@ -20,8 +20,8 @@ def make_policy(config: ScenarioConfig):
         if config.layout.closed and len(blocks) <= len(config.trains):
             raise ConfigError(f"fixed block: {len(config.trains)} trains on the {len(blocks)} blocks of loop "
                               f"{config.layout.name} cannot move (each needs a clear block ahead): give more blocks "
-                              f"than trains, each well longer than a train and its margin, since a train across a "
-                              f"block boundary holds two (cbtc sim --blocks)")
+                              f"than trains (--blocks), each well longer than a train and its margin, since a train "
+                              f"across a block boundary holds two")
         return policy
     raise ConfigError(f"unknown policy {config.policy!r}: use moving_block or fixed_block")
 
