@@ -72,6 +72,16 @@ def test_write_config_files_and_modes(tmp_path):
 def test_cli_and_tool_write_the_config(tmp_path, capsys):
     assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli"), "--port", "1884"]) == 0
     assert "listener 1884 127.0.0.1" in (tmp_path / "cli" / "mosquitto.conf").read_text()
+    # run again: the passwords on the boards are never replaced without being asked
+    before = (tmp_path / "cli" / "credentials.json").read_text()
+    assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli")]) == 2
+    assert "--keep-passwords" in capsys.readouterr().err
+    assert (tmp_path / "cli" / "credentials.json").read_text() == before
+    assert main(["broker", "config", "--trains", "A,B,C", "--out", str(tmp_path / "cli"), "--keep-passwords"]) == 0
+    kept = json.loads((tmp_path / "cli" / "credentials.json").read_text())
+    assert {u: kept[u] for u in json.loads(before)} == json.loads(before) and "train-C" in kept
+    assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli"), "--force"]) == 0
+    assert json.loads((tmp_path / "cli" / "credentials.json").read_text())["zc"] != kept["zc"]
     assert main(["broker", "config", "--trains", "A,,A", "--out", str(tmp_path / "bad")]) == 2
     assert "duplicate train ids" in capsys.readouterr().err
     out = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "make_broker_config.py"), "--trains", "T1",

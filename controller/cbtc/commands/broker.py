@@ -10,6 +10,7 @@ import os
 
 from cbtc.bus.broker_config import load_credentials, write_config
 from cbtc.commands.common import parse_ids
+from cbtc.errors import ConfigError
 
 
 def register(sub):
@@ -25,14 +26,21 @@ def register(sub):
                                                          "on the Wi-Fi)")
     cfg.add_argument("--run-as", default=None, metavar="USER",
                      help="user Mosquitto runs as when started as root (default: its own, `mosquitto`)")
-    cfg.add_argument("--keep-passwords", action="store_true",
-                     help="reuse the passwords of an existing DIR/credentials.json (boards keep working)")
+    again = cfg.add_mutually_exclusive_group()
+    again.add_argument("--keep-passwords", action="store_true",
+                       help="reuse the passwords of an existing DIR/credentials.json (boards keep working)")
+    again.add_argument("--force", action="store_true",
+                       help="make new passwords over an existing DIR/credentials.json (every board and client then "
+                            "needs the new ones)")
     cfg.set_defaults(func=run_config)
 
 
 def run_config(args):
     ids = parse_ids(args.trains)
     old = os.path.join(args.out, "credentials.json")
+    if os.path.exists(old) and not (args.keep_passwords or args.force):
+        raise ConfigError(f"{old} exists and its passwords are on your boards and clients: add --keep-passwords to "
+                          f"keep them (new trains get new ones), or --force to make new ones for all")
     keep = load_credentials(old) if args.keep_passwords and os.path.exists(old) else None
     paths = write_config(args.out, ids, port=args.port, host=args.host, credentials=keep, run_as=args.run_as)
     print(f"wrote {', '.join(sorted(paths.values()))}")
