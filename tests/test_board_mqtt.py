@@ -96,7 +96,7 @@ class Mosquitto:
 class Controller:
     """A paho client standing in for the zone controller: decoded reports, retained status, sealed commands."""
 
-    def __init__(self, port):
+    def __init__(self, port, login=None):
         self.reports = []
         self.status = []
         self.rejected = []
@@ -106,6 +106,8 @@ class Controller:
         self.client.on_message = self._on_message
         self.client.on_connect = lambda c, u, f, rc, p: c.subscribe("cbtc/train/%s/#" % TRAIN)
         self.client.reconnect_delay_set(0.2, 0.5)
+        if login is not None:   # (user, password) on a broker that refuses anonymous clients
+            self.client.username_pw_set(*login)
         self.client.connect("127.0.0.1", port)
         self.client.loop_start()
 

@@ -4,6 +4,7 @@ The deployed firmware must boot there (its boot message is what flash waits for)
 Failures are BoardErrors that name the port: no such port, a port nobody answers on, a copy that cannot land.
 """
 
+import json
 import os
 import pty
 import time
@@ -47,6 +48,28 @@ def test_flash_deploys_verifies_and_the_board_reports(board, tmp_path):
     finally:
         zc.close()
         broker.stop()
+
+
+def test_flash_with_credentials_logs_the_board_in_to_a_secured_broker(board, secured_mosquitto, tmp_path, capsys):
+    """The broker `cbtc broker config` writes refuses anonymous clients: the board logs in as train-A with the
+    password from credentials.json, and its reports arrive. A credentials file without the train is refused before
+    the board is touched."""
+    broker, creds = secured_mosquitto(["A"])
+    creds_path = tmp_path / "credentials.json"
+    creds_path.write_text(json.dumps(creds))
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"zc": "x"}))
+    argv = ["flash", "--port", board.port, "--train", "A", "--broker", "mqtt://127.0.0.1:%d" % broker.port,
+            "--key", KEY.hex()]
+    assert cli_main(argv + ["--credentials", str(other)]) == 2
+    assert "has no user train-A" in capsys.readouterr().err and os.listdir(board.fs_dir) == []
+    zc = Controller(broker.port, login=("zc", creds["zc"]))
+    try:
+        assert cli_main(argv + ["--credentials", str(creds_path)]) == 0
+        report = zc.wait(lambda r: True, 10, "a report from the board logged in to the secured broker")
+        assert report["id"] == "A"
+    finally:
+        zc.close()
 
 
 def test_flash_errors_name_the_port(board, tmp_path):

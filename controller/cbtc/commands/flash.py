@@ -18,6 +18,9 @@ def register(subparsers):
     p.add_argument("--key", default=os.environ.get("CBTC_TRAIN_KEY"),
                    help="the train's 16-byte key as 32 hex digits (default: $CBTC_TRAIN_KEY); the zone controller "
                         "must hold the same key")
+    p.add_argument("--credentials", default=None, metavar="FILE",
+                   help="the broker's credentials.json (cbtc broker config): the board logs in as train-<id> with its "
+                        "password (default: anonymous, for an open broker)")
     p.add_argument("--timeout", type=float, default=120.0, help="seconds allowed for copying (default 120)")
     p.set_defaults(func=run)
 
@@ -27,7 +30,17 @@ def run(args):
 
     if not args.key:
         raise ConfigError("--key is required (or set CBTC_TRAIN_KEY): 32 hex digits, the train's key")
-    result = flash(args.port, args.train, args.key, args.broker, args.wifi_ssid, args.wifi_password,
+    login = None
+    if args.credentials is not None:
+        from cbtc.bus.broker_config import load_credentials
+
+        user = f"train-{args.train}"
+        passwords = load_credentials(args.credentials)
+        if user not in passwords:
+            raise ConfigError(f"--credentials {args.credentials} has no user {user}: run `cbtc broker config "
+                              f"--trains ...,{args.train} --out DIR --keep-passwords` and restart the broker")
+        login = {"mqtt_user": user, "mqtt_password": passwords[user]}
+    result = flash(args.port, args.train, args.key, args.broker, args.wifi_ssid, args.wifi_password, extra=login,
                    timeout_s=args.timeout)
     print(f"flashed {result['files']} files to {result['port']}; "
           f"train {args.train} booted firmware {result['version']}")
