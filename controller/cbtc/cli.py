@@ -35,8 +35,16 @@ def _version() -> str:
         return "unknown (not installed)"
 
 
+class _Parser(argparse.ArgumentParser):
+    """Refuses a bad command line in one line (naming the flag, the value and the fix) and exit status 2; the
+    sub-commands' parsers are of this class too."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="cbtc",
         description="LEGO-scale Communication-Based Train Control: simulate, control, measure, flash.",
     )

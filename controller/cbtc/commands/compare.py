@@ -1,6 +1,7 @@
 """`cbtc compare`: moving block with Takagi control against the fixed-block baseline, on the paper's scenario."""
 
 from cbtc.authority.speed_code_channel import SpeedCodeChannel
+from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments.headway import (
@@ -39,7 +40,7 @@ def register(sub):
     p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
                        description=__doc__)
     p.add_argument("--layout", default="itb_square")
-    p.add_argument("--laps", type=int, default=5)
+    p.add_argument("--laps", type=arg_types.whole(1), default=5)
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",
                    help="also run the steady-following experiment with every report at these periods (ms), e.g. "
@@ -49,9 +50,9 @@ def register(sub):
                         "0.3,0.5 (the follower's line speed is 0.6)")
     p.add_argument("--code-ber", type=float, default=0.0, metavar="P",
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=arg_types.seed, default=0)
     p.add_argument("--json", action="store_true")
-    p.add_argument("--plot", metavar="PNG", default="",
+    p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="",
                    help="distance-time plot of both systems (the paper's Figure 4)")
     p.set_defaults(func=run)
 

@@ -1,5 +1,6 @@
 """`cbtc demo`: the source paper's scenario, two trains on the square loop, on the embedded mock broker."""
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import run_scenario_and_report
 from cbtc.layout_files import load_layout
 from cbtc.zone.config import paper_scenario
@@ -10,11 +11,12 @@ def register(sub):
                        description="Two virtual LEGO trains run laps of the paper's square loop under the zone "
                                    "controller, on the in-process mock broker under a virtual clock.")
     p.add_argument("--layout", default="itb_square", help="layout file or packaged name (default: itb_square)")
-    p.add_argument("--laps", type=int, default=5, help="laps each train completes (default: 5)")
-    p.add_argument("--seed", type=int, default=0, help="random seed; the same seed gives the same result (default: 0)")
+    p.add_argument("--laps", type=arg_types.whole(1), default=5, help="laps each train completes (default: 5)")
+    p.add_argument("--seed", type=arg_types.seed, default=0,
+                   help="random seed; the same seed gives the same result (default: 0)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--plot", metavar="PNG", default="cbtc-demo.png",
+    p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="cbtc-demo.png",
                    help="distance-time plot (default: cbtc-demo.png; '' for none)")
     p.set_defaults(func=run)
 

@@ -1,5 +1,6 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import run_scenario_and_report
 from cbtc.layout_files import load_layout
 from cbtc.sim import faults
@@ -9,9 +10,9 @@ from cbtc.sim.runs import sim_config
 def register(sub):
     p = sub.add_parser("sim", help="simulate N trains on a layout", description=__doc__)
     p.add_argument("--layout", default="lego_oval", help="layout file or packaged name (default: lego_oval)")
-    p.add_argument("--trains", type=int, default=3, help="number of trains (default: 3)")
-    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds (default: 120)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--trains", type=arg_types.whole(1), default=3, help="number of trains (default: 3)")
+    p.add_argument("--duration", type=arg_types.seconds, default=120.0, help="simulated seconds (default: 120)")
+    p.add_argument("--seed", type=arg_types.seed, default=0)
     p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
     p.add_argument("--blocks", type=int, default=None, metavar="N",
                    help="fixed block: N equal blocks instead of the layout's own "
@@ -25,7 +26,7 @@ def register(sub):
                         + ", ".join(f"{name} ({', '.join(f'{k}={v}' for k, v in params.items())})"
                                     for name, (_what, params) in sorted(faults.FAULTS.items())))
     p.add_argument("--json", action="store_true")
-    p.add_argument("--plot", metavar="PNG", default="", help="write a distance-time plot")
+    p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="", help="write a distance-time plot")
     p.set_defaults(func=run)
 
 
