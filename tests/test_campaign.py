@@ -51,11 +51,11 @@ def test_the_plan_is_drawn_from_the_seeds_alone_and_a_longer_campaign_extends_a_
 
 def test_bad_values_are_named_before_any_run(tmp_path, capsys):
     results = str(tmp_path / "r.jsonl")
-    for extra, says in ((["--runs", "0"], "--runs 0"), (["--trains", "2-x"], "--trains '2-x'"),
+    for extra, says in ((["--runs", "0"], "--runs: 0"), (["--trains", "2-x"], "--trains '2-x'"),
                         (["--trains", "0"], "1 train or more"), (["--layouts", "nowhere"], "nowhere"),
                         (["--duration", "4"], "--duration 4.0"), (["--fault", "nope"], "unknown"),
                         (["--fault", "stop_dead:train=T9"], "no train T9 in a run of 2 trains"),
-                        (["--trains", "40"], "do not fit"), (["--workers", "0"], "--workers 0"),
+                        (["--trains", "40"], "do not fit"), (["--workers", "0"], "--workers: 0"),
                         (["--results", str(tmp_path / "no" / "r.jsonl")], "does not exist")):
         assert main(SMALL + ["--results", results] + extra) == 2, extra
         err = capsys.readouterr().err

@@ -17,8 +17,8 @@ def cbtc(*args, timeout_s=300):
 
 
 @pytest.mark.parametrize("args, says", [
-    (["--payloads", "0"], "--payloads 0: give 1 to"),
-    (["--seed", "-1"], "--seed -1"),
+    (["--payloads", "0"], "--payloads: 0 is out of range"),
+    (["--seed", "-1"], "--seed: -1 is out of range"),
     (["--broker", "ftp://host"], "scheme 'ftp' is not supported"),
 ])
 def test_bad_values_are_refused_before_anything_starts(args, says, capsys):

@@ -12,6 +12,7 @@ import os
 import sys
 import time
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments import campaign
@@ -24,7 +25,7 @@ def register(sub):
     p = sub.add_parser("campaign", help="seeded runs over fault classes, layouts and fleet sizes, judged by truth",
                        description=__doc__ + "\n" + campaign.__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--runs", type=int, default=100, help="number of runs (default 100)")
+    p.add_argument("--runs", type=arg_types.whole(1), default=100, help="number of runs (default 100)")
     p.add_argument("--fault", action="append", default=[], metavar="CLASS[:PARAM=VALUE,...]",
                    help="a fault class to run (repeatable; default: every class); parameters given are kept, the "
                         "others drawn per run; classes: " + ", ".join(campaign.CLASSES))
@@ -32,9 +33,10 @@ def register(sub):
                    help=f"layouts, comma-separated (default {','.join(campaign.LAYOUTS)})")
     p.add_argument("--trains", default="2-6", metavar="COUNTS",
                    help="fleet sizes: a range 2-6 or a list 2,4 (default 2-6)")
-    p.add_argument("--duration", type=float, default=60.0, help="simulated seconds per run (default 60)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the first run; run k has seed + k (default 0)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+    p.add_argument("--duration", type=arg_types.seconds, default=60.0, help="simulated seconds per run (default 60)")
+    p.add_argument("--seed", type=arg_types.seed, default=0,
+                   help="seed of the first run; run k has seed + k (default 0)")
+    p.add_argument("--workers", type=arg_types.whole(1), default=os.cpu_count() or 1,
                    help=f"worker processes on this machine (default: every core, {os.cpu_count()})")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on this Dask distributed cluster instead, e.g. tcp://10.0.0.5:8786")

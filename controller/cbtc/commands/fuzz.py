@@ -10,6 +10,7 @@ import logging
 import sys
 
 from cbtc.bus.paho_bus import parse_broker_url
+from cbtc.commands import arg_types
 from cbtc.commands.common import print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments import fuzz
@@ -23,8 +24,9 @@ def register(sub):
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--broker", default=None, metavar="URL",
                    help="mqtt://HOST:PORT of an open broker (default: a private Mosquitto on a free loopback port)")
-    p.add_argument("--payloads", type=int, default=10000, help="bad payloads to throw (default 10000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the payloads and the trains (default 0)")
+    p.add_argument("--payloads", type=arg_types.whole(1, MAX_PAYLOADS), default=10000,
+                   help="bad payloads to throw (default 10000)")
+    p.add_argument("--seed", type=arg_types.seed, default=0, help="seed of the payloads and the trains (default 0)")
     p.add_argument("--json", action="store_true", help="print the figures as JSON")
     p.set_defaults(func=run)
 

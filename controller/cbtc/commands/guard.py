@@ -1,5 +1,6 @@
 """`cbtc guard`: the faulty-leader scenario with the onboard collision guard off and on, collisions per seed."""
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
@@ -11,8 +12,8 @@ def register(sub):
                                    "1 m ahead, so the zone controller's authority for train B is too long; once "
                                    "without and once with train-to-train ranging and B's onboard collision guard. "
                                    "Exit status 1 unless the guard run has 0 collisions on every seed.")
-    p.add_argument("--seeds", type=int, default=5, help="number of seeds, 0..N-1 (default: 5)")
-    p.add_argument("--duration", type=float, default=60.0, help="simulated seconds per run (default: 60)")
+    p.add_argument("--seeds", type=arg_types.whole(1), default=5, help="number of seeds, 0..N-1 (default: 5)")
+    p.add_argument("--duration", type=arg_types.seconds, default=60.0, help="simulated seconds per run (default: 60)")
     p.add_argument("--layout", default="itb_square", help="layout file or packaged name (default: itb_square)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)

@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.layout_files import layout_names, load_layout
 from cbtc.railway.ips_frame import ips_to_track
@@ -13,7 +14,7 @@ def register(sub):
     verbs.required = True
     show = verbs.add_parser("show", help="print a layout's length, stations, tags and blocks; draw it")
     show.add_argument("layout", help="YAML file or packaged name (see `cbtc layout list`)")
-    show.add_argument("--png", metavar="OUT", help="draw the layout to this PNG")
+    show.add_argument("--png", metavar="OUT", type=arg_types.output_file, help="draw the layout to this PNG")
     show.add_argument("--json", action="store_true", help="print the description as JSON")
     show.set_defaults(func=run_show)
     listing = verbs.add_parser("list", help="the packaged layouts")

@@ -1,5 +1,6 @@
 """`cbtc ranging`: figures of the coded ranging receiver, the 31-chip data channel and the Hamming telegrams."""
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments.ranging_tables import ranging_figures
@@ -12,10 +13,10 @@ def register(sub):
                                    "31-chip data channel beside theory and the CODIBDT coded radar, and telegram "
                                    "statistics "
                                    "under random bit errors.")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--seed", type=arg_types.seed, default=0, help="random seed (default: 0)")
     p.add_argument("--chip-rate", type=float, default=1e9, metavar="HZ",
                    help="chip rate (default: 1e9, a UWB-class radio: 0.15 m of range per chip)")
-    p.add_argument("--trials", type=int, default=300, help="exchanges per table cell (default: 300)")
+    p.add_argument("--trials", type=arg_types.whole(1), default=300, help="exchanges per table cell (default: 300)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)
 

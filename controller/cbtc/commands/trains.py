@@ -11,6 +11,7 @@ import numpy as np
 
 from cbtc.bus.broker_config import train_user
 from cbtc.bus.paho_bus import PahoBus
+from cbtc.commands import arg_types
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, write_json
 from cbtc.layout_files import load_layout
 from cbtc.live.keys import credentials
@@ -24,8 +25,10 @@ def register(sub):
     p = sub.add_parser("trains", help="run virtual trains against a real MQTT broker", description=__doc__)
     add_connection_args(p)
     add_fleet_args(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and board clocks (default 0)")
-    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--seed", type=arg_types.seed, default=0,
+                   help="seed of the sensor noise and board clocks (default 0)")
+    p.add_argument("--duration", type=arg_types.seconds, default=None,
+                   help="stop after this many seconds (default: until Ctrl-C)")
     p.add_argument("--summary-json", default=None, metavar="FILE", help="write the truth-based figures at exit")
     p.add_argument("--status-json", default=None, metavar="FILE",
                    help="rewrite the truth-based figures into FILE at every status period")

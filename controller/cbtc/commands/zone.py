@@ -9,6 +9,7 @@ import secrets
 import sys
 
 from cbtc.bus.paho_bus import PahoBus
+from cbtc.commands import arg_types
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, fmt, write_json
 from cbtc.layout_files import load_layout
 from cbtc.live.keys import credentials
@@ -26,9 +27,10 @@ def register(sub):
     p.add_argument("--zone-id", default="zc1", help="zone id in cbtc/zc/<id>/status (default zc1)")
     p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=arg_types.seed, default=None,
                    help="seed of the session id and dwell times (default: random, so a restart is a new session)")
-    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--duration", type=arg_types.seconds, default=None,
+                   help="stop after this many seconds (default: until Ctrl-C)")
     p.add_argument("--report-budget-hz", type=float, default=400.0, metavar="HZ",
                    help="reports a second this machine can answer (default 400: 20 trains at 20 Hz on two cores, "
                         "cbtc bench latency); followed trains are asked for 50 Hz reports within it")
