@@ -191,12 +191,14 @@ def test_missing_file_bad_yaml_and_empty_file(tmp_path):
 
 def test_layout_show_prints_and_draws(tmp_path, capsys):
     png = tmp_path / "square.png"
-    assert cbtc_main(["layout", "show", "itb_square", "--png", str(png)]) == 0
+    assert cbtc_main(["layout", "show", "itb_square", "--plot", str(png)]) == 0
     out = capsys.readouterr().out
     assert "closed loop, 6.8106 m, 8 segments" in out
     assert "04A100A1    0.15  0.47   0.0" in out            # uid, s, x = 0.32 + 0.15, y
     assert "main" in out and "5.108  6.8106    1.7027" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+    older = tmp_path / "older.png"   # --png, the older name of --plot, still draws
+    assert cbtc_main(["layout", "show", "itb_square", "--png", str(older)]) == 0 and older.stat().st_size > 20_000
 
 
 def test_layout_list_and_errors_without_traceback(tmp_path, capsys):

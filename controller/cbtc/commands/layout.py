@@ -14,7 +14,8 @@ def register(sub):
     verbs.required = True
     show = verbs.add_parser("show", help="print a layout's length, stations, tags and blocks; draw it")
     show.add_argument("layout", help="YAML file or packaged name (see `cbtc layout list`)")
-    show.add_argument("--png", metavar="OUT", type=arg_types.output_file, help="draw the layout to this PNG")
+    show.add_argument("--plot", "--png", dest="plot", metavar="PNG", type=arg_types.output_file,
+                      help="draw the layout to this PNG (--png: the same, the older name)")
     show.add_argument("--json", action="store_true", help="print the description as JSON")
     show.set_defaults(func=run_show)
     listing = verbs.add_parser("list", help="the packaged layouts")
@@ -44,8 +45,8 @@ def _block_length_m(layout, block):
 def run_show(args):
     layout = load_layout(args.layout)
     info = describe(layout)
-    if args.png:
-        draw_png(layout, args.png)
+    if args.plot:
+        draw_png(layout, args.plot)
     if args.json:
         print_json(info)
         return 0
@@ -61,8 +62,8 @@ def run_show(args):
         print("\nfixed blocks:")
         print(format_table(info["blocks"], [("name", "name"), ("start_m", "start m"), ("end_m", "end m"),
                                             ("length_m", "length m")]))
-    if args.png:
-        print(f"\ndrawing: {args.png}")
+    if args.plot:
+        print(f"\ndrawing: {args.plot}")
     return 0
 
 
