@@ -9,6 +9,8 @@ from cbtc.bus.mock_broker import LinkProfile
 from cbtc.layout_files import load_layout
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
+from cbtc.sim.recorder import violations
+from cbtc.sim.runs import sim_config
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import ScenarioConfig, TrainSpec, paper_scenario
 
@@ -16,6 +18,13 @@ from cbtc.zone.config import ScenarioConfig, TrainSpec, paper_scenario
 @pytest.fixture(scope="module")
 def square():
     return load_layout("itb_square")
+
+
+def _run_faulted(layout, trains, seed, duration_s, *faults, **options):
+    """The run `cbtc sim --layout LAYOUT --trains N --seed K --duration S --fault F...` makes, run to its end."""
+    sim = Simulation(sim_config(layout, trains, seed, duration_s, fault_texts=faults, **options))
+    sim.run()
+    return sim
 
 
 def two_trains(layout, gap_m=1.5, seed=1, duration_s=30.0, leader_v_mps=0.6):
@@ -210,11 +219,7 @@ def test_a_stop_list_of_one_station_dwells_once_a_lap_and_leaves_it(square):
 def test_an_odometer_jump_either_way_breaks_nothing(layout, trains, seed, fault):
     """A count that jumps back trips the board, which refuses the commands sealed on its older reports (they held up
     to 2.2 m beyond the train ahead); a jump ahead beyond the motor's reach makes the zone locate the train afresh."""
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config(layout, trains, seed, 25.0, fault_texts=(fault,)))
-    sim.run()
+    sim = _run_faulted(layout, trains, seed, 25.0, fault)
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
 
@@ -227,11 +232,7 @@ def test_an_odometer_jump_either_way_breaks_nothing(layout, trains, seed, fault)
 def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed, policy, blocks, gap_m):
     """Trains start packed, two or more in one fixed block (as at start-up): each goes only as far as the train
     ahead allows, the front one round to the block behind it."""
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config(layout, trains, seed, 25.0, policy, blocks=blocks, start_gap_m=gap_m))
-    sim.run()
+    sim = _run_faulted(layout, trains, seed, 25.0, policy=policy, blocks=blocks, start_gap_m=gap_m)
     summary = sim.recorder.summary()
     assert violations(summary) == [] and min(t["distance_m"] for t in summary["trains"]) > 1.0, summary
 
@@ -244,11 +245,7 @@ def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed,
 ])
 def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_counted_apart(
         layout, trains, seed, fault, rolled_onto):
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)))
-    sim.run()
+    sim = _run_faulted(layout, trains, seed, 30.0, fault)
     summary = sim.recorder.summary()
     assert violations(summary) == [] and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary
 
@@ -257,11 +254,7 @@ def test_a_slip_learnt_as_the_scale_does_not_strand_the_train():
     """A wheel read 28 % short for 5.5 s; the filter learnt that as its scale, whose low bound fell to 0.35 odometer
     m per m, below the band a wheel can have: the zone then gave no authority, and a train standing still never
     relearns it (it stood for the last 30 s). Below the band, the band's lowest is used: it runs on."""
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config("lego_oval", 4, 25, 50.0, fault_texts=(
-        "encoder_scale:at_s=22.8,duration_s=5.553,factor=0.718,train=T2",)))
-    sim.run()
+    sim = _run_faulted("lego_oval", 4, 25, 50.0, "encoder_scale:at_s=22.8,duration_s=5.553,factor=0.718,train=T2")
     summary = sim.recorder.summary()
     assert summary["stranded"] == 0 and summary["collisions"] == 0 and summary["authority_overruns"] == 0, summary
 
@@ -274,11 +267,7 @@ def test_a_slip_learnt_as_the_scale_does_not_strand_the_train():
     ("lego_oval", 6, 642, "encoder_scale:at_s=29.2,duration_s=5.893,factor=1.125,train=T1"),
 ])
 def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layout, trains, seed, fault):
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config(layout, trains, seed, 40.0, fault_texts=(fault,)))
-    sim.run()
+    sim = _run_faulted(layout, trains, seed, 40.0, fault)
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["stranded"] == 0, summary
     if seed == 180:   # the zone's status shows it (642's train is located afresh after a trip: a new count)
@@ -296,11 +285,7 @@ def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layou
 ])
 def test_a_wheel_that_spins_or_slides_gradually_is_caught_by_the_speed_envelope(layout, trains, seed, duration_s,
                                                                                  fault):
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config(layout, trains, seed, duration_s, fault_texts=(fault,)))
-    sim.run()
+    sim = _run_faulted(layout, trains, seed, duration_s, fault)
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["stranded"] == 0, summary
 
@@ -314,11 +299,7 @@ def test_a_wheel_that_spins_or_slides_gradually_is_caught_by_the_speed_envelope(
 ])
 def test_a_wheel_that_begins_to_slide_under_a_long_authority_still_stops_within_the_margin(layout, trains, seed,
                                                                                          fault):
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)))
-    sim.run()
+    sim = _run_faulted(layout, trains, seed, 30.0, fault)
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["stranded"] == 0, summary
 
@@ -327,12 +308,7 @@ def test_a_stuck_encoder_under_a_short_authority_trips_before_the_train_ahead():
     """T1 stands 0.057 m behind T2 with 16 mm of authority; T2 moves off and T1 starts as its encoder sticks: the board
     drove the full slack of 60 mm without a count and ran 2 mm into the protected zone. The slack is at most the
     authority left."""
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config("lego_oval", 4, 555, 32.0, fault_texts=(
-        "encoder_stuck:at_s=27.0,duration_s=4.153,train=T1",)))
-    sim.run()
+    sim = _run_faulted("lego_oval", 4, 555, 32.0, "encoder_stuck:at_s=27.0,duration_s=4.153,train=T1")
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
 
@@ -342,12 +318,7 @@ def test_fixes_off_by_multipath_are_not_taken_while_a_roll_has_widened_the_posit
     counts, flagged roll, widen its position until an offset fix passes the gate and takes the filter 0.22 m ahead of
     the train, out of its bounds: T3 behind was granted 0.6 m into it (a collision). While the sensors disagree a fix
     far from the wheel's position is not taken."""
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config("itb_square", 4, 315, 30.0, fault_texts=(
-        "ips_offset:at_s=17.0,duration_s=5.674,offset_m=0.342,train=T4",)))
-    sim.run()
+    sim = _run_faulted("itb_square", 4, 315, 30.0, "ips_offset:at_s=17.0,duration_s=5.674,offset_m=0.342,train=T4")
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
 
@@ -356,12 +327,7 @@ def test_a_count_that_catches_up_after_sticking_is_not_taken_as_travel():
     """T2's encoder sticks for 3.4 s; released, its count catches up 0.13 m in one report. The fresh filter took that
     as 2.4 m/s of travel and put T2 1.4 m ahead of itself (7 collisions); counts beyond what the motor can drive since
     the previous report are taken out like a roll, the position widened by them."""
-    from cbtc.sim.recorder import violations
-    from cbtc.sim.runs import sim_config
-
-    sim = Simulation(sim_config("itb_square", 4, 973, 30.0, fault_texts=(
-        "encoder_stuck:at_s=19.5,duration_s=3.436,train=T2",)))
-    sim.run()
+    sim = _run_faulted("itb_square", 4, 973, 30.0, "encoder_stuck:at_s=19.5,duration_s=3.436,train=T2")
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["rolled_onto"] == 0, summary
 

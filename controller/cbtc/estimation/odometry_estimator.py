@@ -49,6 +49,9 @@ class OdometryEstimator:
         takes the drift fraction as the scale's 1-sigma."""
         return 1.0 - k_sigma * self.drift_frac
 
+    def distrust_wheel(self) -> None:
+        """Nothing to re-open: this estimator learns no scale and always takes `drift_frac` as its doubt."""
+
     def on_report(self, report: dict, clock) -> None:
         t_s = clock.to_controller_s(report["t_ms"])
         odo_mm = report["odo_mm"]

@@ -164,8 +164,8 @@ def _overhead_budget(config, profile, basis, steady, t, cseq, eoa_ahead_m, leade
 
 
 def check_block_counts(layout, counts, seed=0):
-    """Raise ConfigError naming the first block count of `counts` on which the paper scenario's fixed block cannot
-    run (too few blocks for its trains, or blocks shorter than a train): checked before any run starts."""
+    """Raise ConfigError naming the first block count of `counts` the paper scenario's fixed block refuses (no more
+    blocks than trains on the loop, or a count the layout cannot be cut into): checked before any run starts."""
     from cbtc.zone.factory import make_policy
     for count in counts:
         config = paper_scenario(layout, seed=seed, policy="fixed_block", policy_options={"blocks": int(count)})

@@ -222,9 +222,7 @@ class ZoneController:
                 self.refusals.note(state.train_id, "encoder failed", f"{', '.join(sorted(faults))}: no authority "
                                    f"until it reports healthy and is located again; every train held", recv_s)
             state.relocate(self._estimator_factory(self.layout, state.setup.profile))
-            distrust = getattr(state.estimator, "distrust_wheel", None)   # what the wheel read before says nothing
-            if distrust is not None:
-                distrust()
+            state.estimator.distrust_wheel()   # what the wheel read before says nothing of how it reads now
         else:
             state.encoder_failed = False
             if jump_mm:
