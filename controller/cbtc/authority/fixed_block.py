@@ -90,7 +90,8 @@ class FixedBlockPolicy:
         received = code if sit.received_code is None else sit.received_code
         if received < code:
             # a rejected (or lower) code: the train may go only as far as that code allows
-            limit_m = layout.ahead_m(own.s_m, blocks[(i + received) % len(blocks)].end_m)
+            last = i + received if layout.closed else min(i + received, len(blocks) - 1)
+            limit_m = layout.ahead_m(own.s_m, blocks[last % len(blocks)].end_m)
             if limit_m < distance_m:
                 distance_m, reason = limit_m, f"speed code {received} received for {code}"
         distance_m -= self.params.margin_m + self.params.k_sigma * own.sigma_s_m
@@ -109,12 +110,16 @@ class FixedBlockPolicy:
         i = self.index_at(blocks, layout, head_s)
         to_end_m = layout.ahead_m(head_s, blocks[i].end_m)
         for other, other_head, tail in spans:
-            if other != train_id and (layout.ahead_m(head_s, tail) < to_end_m
-                                      or layout.ahead_m(tail, head_s) <= layout.ahead_m(tail, other_head)):
+            if other != train_id and (0.0 <= layout.ahead_m(head_s, tail) < to_end_m
+                                      or 0.0 <= layout.ahead_m(tail, head_s) <= layout.ahead_m(tail, other_head)):
                 return 0, 0.0, f"train {other} in its own block"
         taken = self._taken(layout, blocks, spans, train_id)
         clear, j = 0, (i + 1) % len(blocks)
-        while j not in taken and j != i:
+        while True:
+            if not layout.closed and j == 0:   # past the last block of a line: its end is the end of the track
+                return clear, layout.length_m - head_s, "end of the line"
+            if j in taken or j == i:
+                break
             clear += 1
             j = (j + 1) % len(blocks)
         if j == i and i not in taken:

@@ -29,8 +29,11 @@ def protected_m(policy, layout, train_id, spans) -> float:
     in its own block (fixed block). `spans` lists (train_id, head_s, tail_s) in truth. Negative: the protected zone is
     entered (an authority overrun)."""
     head = next(h for t, h, _ in spans if t == train_id)
-    ahead = [layout.ahead_m(head, tail) for t, _h, tail in spans if t != train_id]
+    # on a line, only trains whose heads are further on are ahead, and the end of the track bounds the front one
+    ahead = [layout.ahead_m(head, tail) for t, h, tail in spans if t != train_id and (layout.closed or h > head)]
     margin_m = policy.params.margin_m
+    if not layout.closed:
+        ahead.append(layout.length_m - head)
     if not isinstance(policy, FixedBlockPolicy):
         return min(ahead) - margin_m if ahead else float("inf")
     blocks = policy.blocks(layout)

@@ -68,8 +68,9 @@ def paper_scenario(layout, seed=0, laps=5, duration_s=200.0, **overrides) -> Sce
 
 
 def queue_scenario(layout, n_trains, seed=0, duration_s=300.0, start_gap_m=None, **overrides) -> ScenarioConfig:
-    """N trains spread evenly along a loop, each stopping at every station, each following the one ahead; with
-    `start_gap_m`, they start one behind the other, that far from a tail to the next head."""
+    """N trains spread evenly along a loop (or a line, each wholly on it), each stopping at every station, each
+    following the one ahead; with `start_gap_m`, they start one behind the other, that far from a tail to the next
+    head (on a line, at its start)."""
     profile = TrainProfile()
     params = overrides.get("params", AuthorityParams())
     spacing_m = layout.length_m / n_trains
@@ -86,8 +87,14 @@ def queue_scenario(layout, n_trains, seed=0, duration_s=300.0, start_gap_m=None,
         raise ConfigError(f"{n_trains} trains do not fit on {layout.name} ({layout.length_m:.2f} m): at most "
                           f"{int(layout.length_m // need_m)} with {need_m:.2f} m per train")
     stops = tuple(st.name for st in layout.stations)
-    trains = [TrainSpec(f"T{k + 1}", layout.wrap(-k * spacing_m if start_gap_m is not None else k * spacing_m), stops,
-                        profile) for k in range(n_trains)]
+    if layout.closed:
+        heads_m = [layout.wrap(-k * spacing_m if start_gap_m is not None else k * spacing_m) for k in range(n_trains)]
+    elif start_gap_m is not None:   # a line: the queue stands at its start, T1 in front, every train on the track
+        heads_m = [profile.length_m + (n_trains - 1 - k) * spacing_m for k in range(n_trains)]
+    else:                           # a line: spread along it, every train on the track, the front one with room to go
+        spacing_m = (layout.length_m - profile.length_m) / n_trains
+        heads_m = [profile.length_m + k * spacing_m for k in range(n_trains)]
+    trains = [TrainSpec(f"T{k + 1}", heads_m[k], stops, profile) for k in range(n_trains)]
     return ScenarioConfig(layout=layout, trains=trains, seed=seed, duration_s=duration_s, **overrides)
 
 

@@ -36,6 +36,7 @@ log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
 _SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true metre a wheel can have: the band
 _SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
+_NO_MORE_STOPS = ""   # next_stop of a train past the last of its stops on a line
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
 
@@ -313,8 +314,14 @@ class ZoneController:
         for i, state in enumerate(located):
             if self.event_driven and state.answered_s is not None and now_s - state.answered_s < self.cycle_s:
                 continue
-            leader = located[(i + 1) % len(located)] if len(located) > 1 else None
-            self._update(state, leader, all_located, now_s)
+            self._update(state, self._leader_of(located, i), all_located, now_s)
+
+    def _leader_of(self, located, i):
+        """The train ahead of `located[i]` (ordered by head position), or None: alone, or at the front of an open
+        line, where the end of the track limits it."""
+        if len(located) < 2 or (i == len(located) - 1 and not self.layout.closed):
+            return None
+        return located[(i + 1) % len(located)]
 
     def _update(self, state, leader, all_located, now_s):
         """Command `state`'s train; an exception makes that train be located afresh, and the others go on."""
@@ -404,9 +411,8 @@ class ZoneController:
             return
         all_located = self._all_located(located)
         i = located.index(state)
-        leader = located[(i + 1) % len(located)] if len(located) > 1 else None
-        self._update(state, leader, all_located, now_s)
-        if all_located and len(located) > 1:
+        self._update(state, self._leader_of(located, i), all_located, now_s)
+        if all_located and len(located) > 1 and (i > 0 or self.layout.closed):
             self._update(located[i - 1], state, True, now_s)
 
     def _station_stop(self, state, now_s):
@@ -417,6 +423,8 @@ class ZoneController:
         est = state.estimator.estimate(state.report_t_s)
         if state.next_stop is None:
             state.next_stop = self._next_station(est.s_m, stops, at_station_ok=True)
+        if state.next_stop == _NO_MORE_STOPS:
+            return None
         station = self.layout.station(state.next_stop)
         to_stop_m = self._signed_ahead(est.s_m, station.s_m)
         standing = state.report["v_mmps"] == 0
@@ -455,13 +463,14 @@ class ZoneController:
 
     def _next_station(self, s_m, stops, at_station_ok=False):
         """The first station in `stops` ahead of `s_m` along the track; with `at_station_ok`, a station whose stop
-        window holds `s_m` (a train that starts at a platform dwells there first)."""
+        window holds `s_m` (a train that starts at a platform dwells there first). _NO_MORE_STOPS on a line past its last stop."""
         def distance(name):
             station = self.layout.station(name)
             if at_station_ok and abs(self._signed_ahead(s_m, station.s_m)) <= station.window_m:
                 return 0.0
             return self.layout.ahead_m(s_m, station.s_m)
-        return min(stops, key=distance)
+        ahead = [name for name in stops if distance(name) >= 0.0]
+        return min(ahead, key=distance) if ahead else _NO_MORE_STOPS
 
     def _command(self, state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
         """Publish the command for the end of authority `safe_m` metres ahead (None: none granted: stop) and the
@@ -572,7 +581,7 @@ class ZoneController:
                 "limited_by": None if st.authority is None else st.authority.reason,
                 "mode": None if st.report is None else st.report["mode"],
                 "faults": [] if st.report is None else list(st.report["flt"]),
-                "next_stop": st.next_stop,
+                "next_stop": st.next_stop or None,
                 "reports_rejected": st.reports_rejected,
                 "ahead_m": None if est is None else round(est.ahead_m, 4),
                 "behind_m": None if est is None else round(est.behind_m, 4),
