@@ -3,7 +3,7 @@ stations past the last stop are not looked for behind the train."""
 
 import pytest
 
-from cbtc.layout_files import load_layout, layout_names
+from cbtc.layout_files import layout_names, load_layout
 from cbtc.railway.layout_dict import layout_from_dict
 from cbtc.sim.runs import sim_config
 from cbtc.sim.simulation import Simulation

@@ -463,7 +463,8 @@ class ZoneController:
 
     def _next_station(self, s_m, stops, at_station_ok=False):
         """The first station in `stops` ahead of `s_m` along the track; with `at_station_ok`, a station whose stop
-        window holds `s_m` (a train that starts at a platform dwells there first). _NO_MORE_STOPS on a line past its last stop."""
+        window holds `s_m` (a train that starts at a platform dwells there first); _NO_MORE_STOPS on a line past its
+        last stop."""
         def distance(name):
             station = self.layout.station(name)
             if at_station_ok and abs(self._signed_ahead(s_m, station.s_m)) <= station.window_m:
