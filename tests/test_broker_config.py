@@ -70,21 +70,21 @@ def test_write_config_files_and_modes(tmp_path):
 
 
 def test_cli_and_tool_write_the_config(tmp_path, capsys):
-    assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli"), "--port", "1884"]) == 0
+    assert main(["broker", "config", "--train-ids", "A,B", "--out", str(tmp_path / "cli"), "--port", "1884"]) == 0
     assert "listener 1884 127.0.0.1" in (tmp_path / "cli" / "mosquitto.conf").read_text()
     # run again: the passwords on the boards are never replaced without being asked
     before = (tmp_path / "cli" / "credentials.json").read_text()
-    assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli")]) == 2
+    assert main(["broker", "config", "--train-ids", "A,B", "--out", str(tmp_path / "cli")]) == 2
     assert "--keep-passwords" in capsys.readouterr().err
     assert (tmp_path / "cli" / "credentials.json").read_text() == before
-    assert main(["broker", "config", "--trains", "A,B,C", "--out", str(tmp_path / "cli"), "--keep-passwords"]) == 0
+    assert main(["broker", "config", "--train-ids", "A,B,C", "--out", str(tmp_path / "cli"), "--keep-passwords"]) == 0
     kept = json.loads((tmp_path / "cli" / "credentials.json").read_text())
     assert {u: kept[u] for u in json.loads(before)} == json.loads(before) and "train-C" in kept
-    assert main(["broker", "config", "--trains", "A,B", "--out", str(tmp_path / "cli"), "--force"]) == 0
+    assert main(["broker", "config", "--train-ids", "A,B", "--out", str(tmp_path / "cli"), "--force"]) == 0
     assert json.loads((tmp_path / "cli" / "credentials.json").read_text())["zc"] != kept["zc"]
-    assert main(["broker", "config", "--trains", "A,,A", "--out", str(tmp_path / "bad")]) == 2
+    assert main(["broker", "config", "--train-ids", "A,,A", "--out", str(tmp_path / "bad")]) == 2
     assert "duplicate train ids" in capsys.readouterr().err
-    out = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "make_broker_config.py"), "--trains", "T1",
+    out = subprocess.run([sys.executable, os.path.join(ROOT, "tools", "make_broker_config.py"), "--train-ids", "T1",
                           "--out", str(tmp_path / "tool")], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert "user train-T1" in (tmp_path / "tool" / "acl").read_text()
@@ -92,11 +92,11 @@ def test_cli_and_tool_write_the_config(tmp_path, capsys):
 
 def test_keys_new_and_load(tmp_path, capsys):
     path = tmp_path / "keys.json"
-    assert main(["keys", "new", "--trains", "A,B", "--out", str(path)]) == 0
+    assert main(["keys", "new", "--train-ids", "A,B", "--out", str(path)]) == 0
     keys = load_keys(str(path))
     assert sorted(keys) == ["A", "B"] and all(len(k) == 16 for k in keys.values()) and keys["A"] != keys["B"]
     assert stat.S_IMODE(os.stat(path).st_mode) == 0o600
-    assert main(["keys", "new", "--trains", "A", "--out", str(path)]) == 2   # never overwrites by accident
+    assert main(["keys", "new", "--train-ids", "A", "--out", str(path)]) == 2   # never overwrites by accident
     assert "--force" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="no key for trains \\['C'\\]"):
         train_keys(["A", "C"], str(path))

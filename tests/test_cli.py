@@ -1,12 +1,14 @@
 """The command line as a whole: its version, and a reader that leaves early."""
 
+import argparse
 import os
 import subprocess
 import sys
 
 import pytest
 
-from cbtc.cli import main
+from cbtc.cli import build_parser, main
+from cbtc.commands import arg_types
 
 
 def test_version_names_the_installed_package(capsys):
@@ -46,3 +48,64 @@ def test_a_bad_value_is_refused_in_one_line_before_any_work(capsys, argv, named)
     err = capsys.readouterr().err
     assert named in err, err
     assert err.count("\n") == 1 and "Traceback" not in err and "--help" in err, err
+
+
+def _options(parser=None, prefix=()):
+    """(command words, action) of every option of every command that takes a value."""
+    parser = parser or build_parser()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _options(sub, prefix + (name,))
+        elif action.option_strings and action.nargs != 0 and action.help != argparse.SUPPRESS:
+            yield prefix, action
+
+
+# free text by nature (names, passwords, addresses), or lists each command checks itself before any work
+FREE_TEXT = {"--username", "--password", "--host", "--run-as", "--zone-id", "--wifi-ssid", "--wifi-password",
+             "--key", "--port", "--train", "--fault", "--scheduler", "--layouts", "--report-ms", "--follow-mps",
+             "--blocks", "--trains", "--broker", "--points"}
+NUMERIC = {"whole number", "seed", "train count", "number", "seconds"}
+
+
+def test_every_option_value_is_checked_while_the_command_line_is_parsed():
+    unchecked = [(" ".join(words), a.option_strings[0]) for words, a in _options()
+                 if a.choices is None and getattr(a.type, "__module__", None) != arg_types.__name__
+                 and a.option_strings[0] not in FREE_TEXT]
+    assert not unchecked, f"options without a shared argument type: {unchecked}"
+
+
+@pytest.mark.parametrize("words,flag", sorted({(words, a.option_strings[0]) for words, a in _options()
+                                               if getattr(a.type, "__name__", "") in NUMERIC}))
+def test_every_number_option_refuses_text_and_nan_in_one_line(capsys, words, flag):
+    for bad in ("x", "nan"):
+        assert main(list(words) + [flag, bad]) == 2
+        err = capsys.readouterr().err
+        assert f"argument {flag}" in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("argv,named", [
+    (["zone", "--count", "2"], "--count is now --trains N"),
+    (["trains", "--trains", "A,B"], "name trains with --train-ids A,B"),
+    (["zone", "--train-ids", "A,,A"], "duplicate train ids"),
+    (["keys", "new", "--trains", "A,B"], "--trains is now --train-ids A,B"),
+    (["broker", "config", "--out", "/nonexistent-folder/b"], "argument --out"),
+    (["keys", "new", "--out", "/nonexistent-folder/k.json"], "argument --out"),
+    (["guard", "--seeds", "x"], "argument --seeds: 'x' is not a range of seeds"),
+    (["sim", "--layout", "no_such_layout"], "layout 'no_such_layout' not found"),
+    (["zone", "--broker", "http://127.0.0.1:1883"], "scheme 'http' is not supported"),
+    (["zone", "--keys", "/nonexistent-folder/keys.json"], "argument --keys"),
+    (["zone", "--summary-json", "/nonexistent-folder/s.json"], "argument --summary-json"),
+    (["campaign", "--results", "/nonexistent-folder/r.jsonl"], "argument --results"),
+    (["calibrate", "encoder", "--reports", "/nonexistent-folder/run.jsonl"], "argument --reports"),
+])
+def test_the_shared_vocabulary_and_paths_are_refused_in_one_line(capsys, argv, named):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert named in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+def test_trains_and_train_ids_must_agree(capsys):
+    argv = ["zone", "--broker", "mqtt://127.0.0.1:1", "--layout", "itb_square", "--trains", "3", "--train-ids", "A,B"]
+    assert main(argv) == 2
+    assert "--trains 3 and --train-ids A,B disagree" in capsys.readouterr().err

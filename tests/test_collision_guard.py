@@ -93,7 +93,7 @@ def test_faulty_leader_guard_prevents_the_collision_that_happens_without_it():
     from cbtc.experiments.guard import run_guard_case
     from cbtc.layout_files import load_layout
     layout = load_layout("itb_square")
-    for seed in range(2):   # `cbtc guard --seeds N` runs more, and longer (the leader fails within 20 s)
+    for seed in range(2):   # `cbtc guard --seeds 0-19` runs more, and longer (the leader fails within 20 s)
         off = run_guard_case(layout, seed, guard=False, duration_s=20.0)
         on = run_guard_case(layout, seed, guard=True, duration_s=20.0)
         assert off["follower_collisions"] > 0, off

@@ -45,7 +45,7 @@ class Fleet:
     def start_zone(self, tag="zone"):
         out = open(os.path.join(self.folder, tag + ".out"), "w")
         err_path = os.path.join(self.folder, tag + ".err")
-        proc = subprocess.Popen(cbtc("zone", "--broker", self.broker.url, "--layout", LAYOUT, "--trains", "A,B",
+        proc = subprocess.Popen(cbtc("zone", "--broker", self.broker.url, "--layout", LAYOUT, "--train-ids", "A,B",
                                      "--sim-seed", str(SIM_SEED), "--summary-json",
                                      os.path.join(self.folder, tag + "-summary.json")),
                                 stdout=out, stderr=open(err_path, "w"))
@@ -54,7 +54,7 @@ class Fleet:
 
     def start_trains(self, duration_s):
         self.trains = subprocess.Popen(
-            cbtc("trains", "--broker", self.broker.url, "--layout", LAYOUT, "--count", "2", "--sim-seed",
+            cbtc("trains", "--broker", self.broker.url, "--layout", LAYOUT, "--trains", "2", "--sim-seed",
                  str(SIM_SEED), "--duration", str(duration_s), "--status-period", "0.2", "--status-json",
                  self.status_path, "--summary-json", self.trains_summary, "--quiet"),
             stdout=open(os.path.join(self.folder, "trains.out"), "w"),

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Write a Mosquitto configuration for the testbed (same as `cbtc broker config`).
 
-    python tools/make_broker_config.py --trains A,B --out broker/ [--port 1883] [--host 127.0.0.1]
+    python tools/make_broker_config.py --train-ids A,B --out broker/ [--port 1883] [--host 127.0.0.1]
 """
 
 import sys

@@ -19,7 +19,7 @@ def layout_names():
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
-def _resolve(path_or_name):
+def resolve_layout(path_or_name):
     """A readable file path for a file path or a packaged layout name."""
     text = str(path_or_name)
     if os.path.isfile(text):
@@ -35,7 +35,7 @@ def _resolve(path_or_name):
 
 def load_layout(path_or_name) -> Layout:
     """Load and validate a layout from a YAML file path or a packaged name such as "itb_square"."""
-    source = _resolve(path_or_name)
+    source = resolve_layout(path_or_name)
     try:
         with open(source, encoding="utf-8") as f:
             data = yaml.safe_load(f)

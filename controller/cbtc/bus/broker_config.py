@@ -118,7 +118,7 @@ def checked_train_ids(train_ids, context):
     """The ids as a list, each a valid train id, none twice; ConfigError prefixed by `context` otherwise."""
     ids = list(train_ids)
     if not ids:
-        raise ConfigError(f"{context}: no trains given: pass --trains A,B")
+        raise ConfigError(f"{context}: no trains given: pass --train-ids A,B")
     if len(set(ids)) != len(ids):
         raise ConfigError(f"{context}: duplicate train ids in {ids}")
     for train_id in ids:

@@ -48,3 +48,131 @@ def output_file(text):
     if os.path.isdir(text):
         raise argparse.ArgumentTypeError(f"{text} is a folder; give a file name, e.g. {os.path.join(text, 'run.png')}")
     return text
+
+
+def train_count(text):
+    """How many trains: a whole number >= 1; a list of names is pointed at --train-ids."""
+    try:
+        return whole(1)(text)
+    except argparse.ArgumentTypeError:
+        if any(c.isalpha() or c == "," for c in text):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number of trains; name trains with --train-ids "
+                                             f"{text}") from None
+        raise
+
+
+train_count.__name__ = "train count"
+
+
+def train_ids(text):
+    """Train ids 'A,B' -> ['A', 'B']: each a valid id, none twice."""
+    from cbtc.bus.broker_config import checked_train_ids
+    from cbtc.errors import ConfigError
+    try:
+        return checked_train_ids([t.strip() for t in text.split(",") if t.strip()], repr(text))
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(f"{exc}; give ids such as A,B") from None
+
+
+train_ids.__name__ = "train ids"
+
+
+def seed_range(text):
+    """Seeds: 'A-B' (A to B), 'A,B,C', or 'N' (0 to N-1); each a seed."""
+    try:
+        if "-" in text.strip("-"):
+            low, high = (int(part) for part in text.split("-", 1))
+            seeds = list(range(low, high + 1))
+        elif "," in text:
+            seeds = [int(part) for part in text.split(",") if part.strip()]
+        else:
+            seeds = list(range(int(text)))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a range of seeds; give e.g. 0-19, 3,5,8 or 20 "
+                                         f"(0 to 19)") from None
+    if not seeds or min(seeds) < 0 or max(seeds) > 2 ** 32 - 1:
+        raise argparse.ArgumentTypeError(f"{text!r} holds no seeds from 0 to 2^32-1; give e.g. 0-19 or 20")
+    return seeds
+
+
+seed_range.__name__ = "seed range"
+
+
+def positive(text):
+    """A finite number above zero."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number; give one above 0") from None
+    if not math.isfinite(value) or value <= 0.0:
+        raise argparse.ArgumentTypeError(f"{text} is out of range; give a finite number above 0")
+    return value
+
+
+def output_folder(text):
+    """A folder to write into: it may not exist yet, but the folder it goes in must."""
+    parent = os.path.dirname(os.path.abspath(text)) or "."
+    if os.path.exists(text) and not os.path.isdir(text):
+        raise argparse.ArgumentTypeError(f"{text} is a file; give a folder")
+    if not os.path.isdir(parent):
+        raise argparse.ArgumentTypeError(f"{text}: folder {parent} does not exist; create it or give another path")
+    return text
+
+
+def renamed(parser, old: str, new: str) -> None:
+    """`old` is no longer a flag of `parser`: using it is refused with the flag to use instead."""
+    class _Renamed(argparse.Action):
+        def __call__(self, p, namespace, values, option_string=None):
+            p.error(f"{old} is now {new}")
+    parser.add_argument(old, nargs="?", action=_Renamed, help=argparse.SUPPRESS)
+
+
+def number(minimum: float = None, above: float = None, maximum: float = None, example: str = "1"):
+    """A finite number: >= `minimum`, > `above`, <= `maximum` (those given)."""
+    bounds = [f">= {minimum:g}" if minimum is not None else "", f"above {above:g}" if above is not None else "",
+              f"<= {maximum:g}" if maximum is not None else ""]
+    span = " and ".join(b for b in bounds if b) or "finite"
+
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number; give one {span}, e.g. {example}") from None
+        if not math.isfinite(value) or (minimum is not None and value < minimum) \
+                or (above is not None and value <= above) or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"{text} is out of range; give a number {span}, e.g. {example}")
+        return value
+    parse.__name__ = "number"
+    return parse
+
+
+def input_file(text):
+    """A file to read: it must exist now."""
+    if not os.path.isfile(text):
+        what = "is a folder" if os.path.isdir(text) else "does not exist"
+        raise argparse.ArgumentTypeError(f"{text} {what}; give the path of a file")
+    if not os.access(text, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{text} is not readable; check its permissions")
+    return text
+
+
+def layout(text):
+    """A layout: a packaged name or a YAML file (its contents are checked when it is loaded)."""
+    from cbtc.errors import LayoutError
+    from cbtc.layout_files import resolve_layout
+    try:
+        resolve_layout(text)
+    except LayoutError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def broker_url(text):
+    """mqtt://HOST:PORT (user and password may be in it)."""
+    from cbtc.bus.paho_bus import parse_broker_url
+    from cbtc.errors import ConfigError
+    try:
+        parse_broker_url(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text

@@ -4,6 +4,7 @@
 (NTAG213/215 or MIFARE Ultralight sticker); `cbtc balise read HEX` decodes what a board reported.
 """
 
+from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import CbtcError
 from cbtc.layout_files import load_layout
@@ -16,7 +17,7 @@ def register(sub):
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
     image = verbs.add_parser("image", help="the 16 data bytes to write into each tag of a layout")
-    image.add_argument("--layout", default="itb_square")
+    image.add_argument("--layout", type=arg_types.layout, default="itb_square")
     image.add_argument("--json", action="store_true")
     image.set_defaults(func=run_image)
     read = verbs.add_parser("read", help="decode a tag's data as a board reports it (32 hex digits)")

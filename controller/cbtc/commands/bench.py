@@ -21,11 +21,13 @@ def register(sub):
     lat.add_argument("--trains", type=arg_types.whole(1), default=20, help="number of virtual trains (default 20)")
     lat.add_argument("--duration", type=arg_types.seconds, default=10.0,
                      help="seconds measured after the warm-up (default 10)")
-    lat.add_argument("--warmup", type=float, default=2.0, help="seconds left out at the start (default 2)")
-    lat.add_argument("--train-procs", type=int, default=4,
+    lat.add_argument("--warmup", type=arg_types.number(minimum=0.0, example="2"), default=2.0,
+                     help="seconds left out at the start (default 2)")
+    lat.add_argument("--train-procs", type=arg_types.whole(1), default=4,
                      help="processes the trains are shared out to (default 4): in one process, 20 trains queue "
                           "behind each other for the GIL as 20 boards never would")
-    lat.add_argument("--layout", default=None, help="layout (default: a LEGO oval long enough for the trains)")
+    lat.add_argument("--layout", type=arg_types.layout, default=None,
+                     help="layout (default: a LEGO oval long enough for the trains)")
     lat.add_argument("--seed", type=arg_types.seed, default=0)
     lat.add_argument("--json", action="store_true", help="print the figures as JSON")
     lat.set_defaults(func=run_latency)

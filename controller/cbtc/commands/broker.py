@@ -9,7 +9,7 @@ read only its own commands.
 import os
 
 from cbtc.bus.broker_config import load_credentials, write_config
-from cbtc.commands.common import parse_ids
+from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 
 
@@ -19,9 +19,12 @@ def register(sub):
     broker_sub.required = True
     cfg = broker_sub.add_parser("config", help="write mosquitto.conf, passwd, acl, credentials.json",
                                 description=__doc__)
-    cfg.add_argument("--trains", required=True, metavar="IDS", help="train ids, e.g. A,B")
-    cfg.add_argument("--out", required=True, metavar="DIR", help="folder to write the files into")
-    cfg.add_argument("--port", type=int, default=1883, help="listener port (default 1883)")
+    cfg.add_argument("--train-ids", type=arg_types.train_ids, required=True, metavar="A,B",
+                     help="train ids, e.g. A,B")
+    arg_types.renamed(cfg, "--trains", "--train-ids A,B")
+    cfg.add_argument("--out", required=True, metavar="DIR", type=arg_types.output_folder,
+                     help="folder to write the files into")
+    cfg.add_argument("--port", type=arg_types.whole(1, 65535), default=1883, help="listener port (default 1883)")
     cfg.add_argument("--host", default="127.0.0.1", help="listener address (default 127.0.0.1; 0.0.0.0 for boards "
                                                          "on the Wi-Fi)")
     cfg.add_argument("--run-as", default=None, metavar="USER",
@@ -36,7 +39,7 @@ def register(sub):
 
 
 def run_config(args):
-    ids = parse_ids(args.trains)
+    ids = args.train_ids
     old = os.path.join(args.out, "credentials.json")
     if os.path.exists(old) and not (args.keep_passwords or args.force):
         raise ConfigError(f"{old} exists and its passwords are on your boards and clients: add --keep-passwords to "

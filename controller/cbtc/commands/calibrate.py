@@ -7,6 +7,7 @@ import csv
 import json
 
 from cbtc.board.calibration import align_ips, counts_per_m, survey_tags, tags_yaml
+from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 
 
@@ -16,19 +17,23 @@ def register(subparsers):
     sub = p.add_subparsers(dest="what", metavar="WHAT")
     sub.required = True
     enc = sub.add_parser("encoder", help="counts per metre from a run of measured length")
-    enc.add_argument("--reports", required=True, help="JSON-lines file of the run's reports")
-    enc.add_argument("--distance-m", type=float, required=True, help="distance the train really travelled (m)")
-    enc.add_argument("--counts-per-m", type=float, default=1000.0,
+    enc.add_argument("--reports", type=arg_types.input_file, required=True, help="JSON-lines file of the run's reports")
+    enc.add_argument("--distance-m", type=arg_types.number(above=0.0, example="3.2"), required=True,
+                     help="distance the train really travelled (m)")
+    enc.add_argument("--counts-per-m", type=arg_types.number(above=0.0, example="1000"), default=1000.0,
                      help="the counts_per_m the board used during the run (default 1000)")
     enc.set_defaults(func=_encoder)
     ips = sub.add_parser("ips", help="IPS frame (origin, rotation) from points measured in both frames")
-    ips.add_argument("--points", required=True,
+    ips.add_argument("--points", type=arg_types.input_file, required=True,
                      help="CSV with header ips_x_mm,ips_y_mm,track_x_m,track_y_m: the hedgehog placed at known spots")
     ips.set_defaults(func=_ips)
     tags = sub.add_parser("tags", help="tag positions along the track from a run's RFID reads")
-    tags.add_argument("--reports", required=True, help="JSON-lines file of the run's reports")
-    tags.add_argument("--start-s-m", type=float, default=0.0, help="track position of the head at the first report (m)")
-    tags.add_argument("--loop-m", type=float, default=None, help="loop length (m) for a closed layout")
+    tags.add_argument("--reports", type=arg_types.input_file, required=True,
+                      help="JSON-lines file of the run's reports")
+    tags.add_argument("--start-s-m", type=arg_types.number(minimum=0.0, example="0"), default=0.0,
+                      help="track position of the head at the first report (m)")
+    tags.add_argument("--loop-m", type=arg_types.number(above=0.0, example="6.8"), default=None,
+                      help="loop length (m) for a closed layout")
     tags.set_defaults(func=_tags)
 
 

@@ -40,7 +40,7 @@ def register(sub):
                    help=f"worker processes on this machine (default: every core, {os.cpu_count()})")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on this Dask distributed cluster instead, e.g. tcp://10.0.0.5:8786")
-    p.add_argument("--results", default="campaign-results.jsonl", metavar="FILE",
+    p.add_argument("--results", type=arg_types.output_file, default="campaign-results.jsonl", metavar="FILE",
                    help="finished runs, kept and reused (default campaign-results.jsonl)")
     p.add_argument("--fresh", action="store_true", help="forget the results file's runs and make every run again")
     p.add_argument("--json", action="store_true", help="print the figures as JSON")

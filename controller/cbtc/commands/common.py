@@ -4,7 +4,8 @@ import json
 import os
 import sys
 
-from cbtc.bus.broker_config import checked_train_ids
+from cbtc.commands import arg_types
+from cbtc.errors import ConfigError
 from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, train_keys
 from cbtc.zone.config import fleet_config
 
@@ -77,38 +78,43 @@ def fmt(value, digits=2) -> str:
 
 def add_connection_args(p, broker_default=None) -> None:
     """--broker, --username, --password, --credentials: how a live command reaches the broker."""
-    p.add_argument("--broker", required=broker_default is None, default=broker_default, metavar="URL",
+    p.add_argument("--broker", type=arg_types.broker_url, required=broker_default is None, default=broker_default,
+                   metavar="URL",
                    help="MQTT broker, mqtt://HOST:PORT")
     p.add_argument("--username", default=None, help=f"broker user name (default: ${ENV_USERNAME})")
     p.add_argument("--password", default=None, help=f"broker password (default: ${ENV_PASSWORD})")
-    p.add_argument("--credentials", default=None, metavar="FILE",
+    p.add_argument("--credentials", type=arg_types.input_file, default=None, metavar="FILE",
                    help="credentials.json from `cbtc broker config`: each client logs in as its own user")
 
 
 def add_fleet_args(p) -> None:
-    """--layout, --trains/--count, --scenario, --keys/--sim-seed: which trains, where, with which keys."""
-    p.add_argument("--layout", required=True, help="layout file or packaged name, e.g. itb_square")
-    p.add_argument("--trains", default=None, metavar="IDS", help="train ids, e.g. A,B")
-    p.add_argument("--count", type=int, default=None, help="number of trains (ids from the scenario), default 2")
+    """--layout, --trains/--train-ids, --scenario, --keys/--sim-seed: which trains, where, with which keys."""
+    p.add_argument("--layout", type=arg_types.layout, required=True,
+                   help="layout file or packaged name, e.g. itb_square")
+    p.add_argument("--trains", type=arg_types.train_count, default=None, metavar="N",
+                   help="number of trains, named by the scenario (default 2, or as many as --train-ids)")
+    p.add_argument("--train-ids", type=arg_types.train_ids, default=None, metavar="A,B",
+                   help="the trains' ids, in the scenario's order, e.g. A,B")
+    arg_types.renamed(p, "--count", "--trains N")
     p.add_argument("--scenario", choices=("auto", "paper", "queue"), default="auto",
                    help="start positions and stops: paper (2 trains, stations main/A/B) or queue; auto picks paper "
                         "when it fits")
-    p.add_argument("--keys", default=None, metavar="FILE", help="JSON keys file {train_id: hex key} (cbtc keys new)")
-    p.add_argument("--sim-seed", type=int, default=0,
+    p.add_argument("--keys", type=arg_types.input_file, default=None, metavar="FILE",
+                   help="JSON keys file {train_id: hex key} (cbtc keys new)")
+    p.add_argument("--sim-seed", type=arg_types.seed, default=0,
                    help="without --keys: derive the keys as the simulator does from this seed (default 0)")
-    p.add_argument("--status-period", type=float, default=1.0, help="seconds between status lines (default 1)")
+    p.add_argument("--status-period", type=arg_types.seconds, default=1.0,
+                   help="seconds between status lines (default 1)")
     p.add_argument("--quiet", action="store_true", help="no status lines")
 
 
 def fleet_from_args(args, layout, seed: int = 0):
     """(ScenarioConfig, {train_id: key}) from the fleet options."""
-    ids = parse_ids(args.trains) if args.trains else None
-    count = args.count if args.count is not None else (None if ids else 2)
+    ids = args.train_ids
+    if ids and args.trains is not None and args.trains != len(ids):
+        raise ConfigError(f"--trains {args.trains} and --train-ids {','.join(ids)} disagree: give one of them, or "
+                          f"as many ids as trains")
+    count = args.trains if args.trains is not None else (None if ids else 2)
     config = fleet_config(layout, ids, count, args.scenario, seed=seed)
     train_ids = [spec.train_id for spec in config.trains]
     return config, train_keys(train_ids, args.keys, args.sim_seed)
-
-
-def parse_ids(text: str) -> list:
-    """'A,B' -> ['A', 'B'] (each a valid train id, no duplicates)."""
-    return checked_train_ids([t.strip() for t in text.split(",") if t.strip()], f"--trains {text!r}")

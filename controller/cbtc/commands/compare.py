@@ -39,7 +39,8 @@ def _following_row(f):
 def register(sub):
     p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
                        description=__doc__)
-    p.add_argument("--layout", default="itb_square")
+    p.add_argument("--layout", type=arg_types.layout, default="itb_square",
+                   help="layout file or packaged name (default: itb_square)")
     p.add_argument("--laps", type=arg_types.whole(1), default=5)
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",
@@ -48,7 +49,8 @@ def register(sub):
     p.add_argument("--follow-mps", default="", metavar="V,...",
                    help="also run the steady-following experiment behind a leader at these speeds (m/s), e.g. "
                         "0.3,0.5 (the follower's line speed is 0.6)")
-    p.add_argument("--code-ber", type=float, default=0.0, metavar="P",
+    p.add_argument("--code-ber", type=arg_types.number(minimum=0.0, maximum=0.5, example="0.001"), default=0.0,
+                   metavar="P",
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
     p.add_argument("--seed", type=arg_types.seed, default=0)
     p.add_argument("--json", action="store_true")

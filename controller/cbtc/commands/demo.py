@@ -10,7 +10,8 @@ def register(sub):
     p = sub.add_parser("demo", help="run the paper scenario: two virtual trains on the square loop (no hardware)",
                        description="Two virtual LEGO trains run laps of the paper's square loop under the zone "
                                    "controller, on the in-process mock broker under a virtual clock.")
-    p.add_argument("--layout", default="itb_square", help="layout file or packaged name (default: itb_square)")
+    p.add_argument("--layout", type=arg_types.layout, default="itb_square",
+                   help="layout file or packaged name (default: itb_square)")
     p.add_argument("--laps", type=arg_types.whole(1), default=5, help="laps each train completes (default: 5)")
     p.add_argument("--seed", type=arg_types.seed, default=0,
                    help="random seed; the same seed gives the same result (default: 0)")

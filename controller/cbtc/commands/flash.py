@@ -3,6 +3,7 @@
 import os
 
 from cbtc.board.flash import flash
+from cbtc.commands import arg_types
 
 
 def register(subparsers):
@@ -10,7 +11,7 @@ def register(subparsers):
                               description=__doc__)
     p.add_argument("--port", required=True, help="serial port of the board, e.g. /dev/ttyUSB0")
     p.add_argument("--train", required=True, help="train id (1-16 of A-Z a-z 0-9 _ -)")
-    p.add_argument("--broker", default="mqtt://192.168.1.10:1883",
+    p.add_argument("--broker", type=arg_types.broker_url, default="mqtt://192.168.1.10:1883",
                    help="broker the board connects to: mqtt://HOST[:PORT]")
     p.add_argument("--wifi-ssid", default=None, help="Wi-Fi network (omit to leave the board's Wi-Fi as it is)")
     p.add_argument("--wifi-password", default=os.environ.get("CBTC_WIFI_PASSWORD", ""),
@@ -18,10 +19,10 @@ def register(subparsers):
     p.add_argument("--key", default=os.environ.get("CBTC_TRAIN_KEY"),
                    help="the train's 16-byte key as 32 hex digits (default: $CBTC_TRAIN_KEY); the zone controller "
                         "must hold the same key")
-    p.add_argument("--credentials", default=None, metavar="FILE",
+    p.add_argument("--credentials", type=arg_types.input_file, default=None, metavar="FILE",
                    help="the broker's credentials.json (cbtc broker config): the board logs in as train-<id> with its "
                         "password (default: anonymous, for an open broker)")
-    p.add_argument("--timeout", type=float, default=120.0, help="seconds allowed for copying (default 120)")
+    p.add_argument("--timeout", type=arg_types.seconds, default=120.0, help="seconds allowed for copying (default 120)")
     p.set_defaults(func=run)
 
 
@@ -38,7 +39,7 @@ def run(args):
         passwords = load_credentials(args.credentials)
         if user not in passwords:
             raise ConfigError(f"--credentials {args.credentials} has no user {user}: run `cbtc broker config "
-                              f"--trains ...,{args.train} --out DIR --keep-passwords` and restart the broker")
+                              f"--train-ids ...,{args.train} --out DIR --keep-passwords` and restart the broker")
         login = {"mqtt_user": user, "mqtt_password": passwords[user]}
     result = flash(args.port, args.train, args.key, args.broker, args.wifi_ssid, args.wifi_password, extra=login,
                    timeout_s=args.timeout)

@@ -24,11 +24,12 @@ def register(sub):
                                    "fusion variant (dead reckoning, IPS alone, UKF encoder+IPS, UKF encoder+IPS+RFID) "
                                    "and prints their RMSE against truth beside the paper's. Exit status 1 when the "
                                    "paper's ordering does not hold.")
-    p.add_argument("--layout", default="itb_square", help="layout file or packaged name (default: itb_square)")
+    p.add_argument("--layout", type=arg_types.layout, default="itb_square",
+                   help="layout file or packaged name (default: itb_square)")
     p.add_argument("--seed", type=arg_types.seed, default=0,
                    help="random seed; the same seed gives the same table (default: 0)")
     p.add_argument("--laps", type=arg_types.whole(1), default=5, help="laps each train completes (default: 5)")
-    p.add_argument("--ips-sigma", type=float, default=None, metavar="M",
+    p.add_argument("--ips-sigma", type=arg_types.number(above=0.0, example="0.02"), default=None, metavar="M",
                    help="IPS noise per axis (m) of both trains, e.g. 0.27 for the paper's IPS (default: the profile's)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="",

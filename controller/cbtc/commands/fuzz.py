@@ -22,7 +22,7 @@ def register(sub):
     p = sub.add_parser("fuzz", help="throw bad payloads at a live zone and trains over Mosquitto, check nothing got "
                                     "through", description=__doc__ + "\n" + fuzz.__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--broker", default=None, metavar="URL",
+    p.add_argument("--broker", type=arg_types.broker_url, default=None, metavar="URL",
                    help="mqtt://HOST:PORT of an open broker (default: a private Mosquitto on a free loopback port)")
     p.add_argument("--payloads", type=arg_types.whole(1, MAX_PAYLOADS), default=10000,
                    help="bad payloads to throw (default 10000)")

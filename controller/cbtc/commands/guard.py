@@ -2,7 +2,6 @@
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
-from cbtc.errors import ConfigError
 from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
 
 
@@ -12,19 +11,17 @@ def register(sub):
                                    "1 m ahead, so the zone controller's authority for train B is too long; once "
                                    "without and once with train-to-train ranging and B's onboard collision guard. "
                                    "Exit status 1 unless the guard run has 0 collisions on every seed.")
-    p.add_argument("--seeds", type=arg_types.whole(1), default=5, help="number of seeds, 0..N-1 (default: 5)")
+    p.add_argument("--seeds", type=arg_types.seed_range, default=list(range(5)), metavar="RANGE",
+                   help="seeds: A-B, a list A,B,C, or N for 0 to N-1 (default: 0-4)")
     p.add_argument("--duration", type=arg_types.seconds, default=60.0, help="simulated seconds per run (default: 60)")
-    p.add_argument("--layout", default="itb_square", help="layout file or packaged name (default: itb_square)")
+    p.add_argument("--layout", type=arg_types.layout, default="itb_square",
+                   help="layout file or packaged name (default: itb_square)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)
 
 
 def run(args):
-    if args.seeds < 1:
-        raise ConfigError(f"--seeds must be >= 1, got {args.seeds}")
-    if args.duration <= 0:
-        raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
-    result = guard_comparison(range(args.seeds), args.layout, args.duration)
+    result = guard_comparison(args.seeds, args.layout, args.duration)
     off_runs = sum(1 for case in result["off"] if case["collisions"] > 0)
     on_total = sum(case["collisions"] for case in result["on"])
     if args.json:
@@ -38,5 +35,5 @@ def run(args):
                 for off, on in zip(result["off"], result["on"])]
         print(format_table(rows, [("seed", "seed"), ("off", "collisions, guard off"), ("off_gap", "min gap m"),
                                   ("on", "collisions, guard on"), ("on_gap", "min gap m"), ("trips", "guard trips")]))
-        print(f"guard off: collision in {off_runs} of {args.seeds} seeds; guard on: {on_total} collisions")
+        print(f"guard off: collision in {off_runs} of {len(args.seeds)} seeds; guard on: {on_total} collisions")
     return 0 if on_total == 0 else 1

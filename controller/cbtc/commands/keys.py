@@ -7,7 +7,7 @@ with the key of the train it is addressed to. Keep the file private.
 import json
 import os
 
-from cbtc.commands.common import parse_ids
+from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 from cbtc.live.keys import new_keys
 
@@ -17,14 +17,17 @@ def register(sub):
     keys_sub = p.add_subparsers(dest="keys_command", metavar="ACTION")
     keys_sub.required = True
     new = keys_sub.add_parser("new", help="write a new keys file", description=__doc__)
-    new.add_argument("--trains", required=True, metavar="IDS", help="train ids, e.g. A,B")
-    new.add_argument("--out", required=True, metavar="FILE", help="keys file to write (e.g. keys.json)")
+    new.add_argument("--train-ids", type=arg_types.train_ids, required=True, metavar="A,B",
+                     help="train ids, e.g. A,B")
+    arg_types.renamed(new, "--trains", "--train-ids A,B")
+    new.add_argument("--out", required=True, metavar="FILE", type=arg_types.output_file,
+                     help="keys file to write (e.g. keys.json)")
     new.add_argument("--force", action="store_true", help="overwrite an existing file")
     new.set_defaults(func=run_new)
 
 
 def run_new(args):
-    ids = parse_ids(args.trains)
+    ids = args.train_ids
     if os.path.exists(args.out) and not args.force:
         raise ConfigError(f"{args.out} exists: its keys may be on boards already; use --force to replace them")
     fd = os.open(args.out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)

@@ -14,7 +14,7 @@ def register(sub):
                                    "statistics "
                                    "under random bit errors.")
     p.add_argument("--seed", type=arg_types.seed, default=0, help="random seed (default: 0)")
-    p.add_argument("--chip-rate", type=float, default=1e9, metavar="HZ",
+    p.add_argument("--chip-rate", type=arg_types.number(above=0.0, example="1e9"), default=1e9, metavar="HZ",
                    help="chip rate (default: 1e9, a UWB-class radio: 0.15 m of range per chip)")
     p.add_argument("--trials", type=arg_types.whole(1), default=300, help="exchanges per table cell (default: 300)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")

@@ -9,16 +9,17 @@ from cbtc.sim.runs import sim_config
 
 def register(sub):
     p = sub.add_parser("sim", help="simulate N trains on a layout", description=__doc__)
-    p.add_argument("--layout", default="lego_oval", help="layout file or packaged name (default: lego_oval)")
+    p.add_argument("--layout", type=arg_types.layout, default="lego_oval",
+                   help="layout file or packaged name (default: lego_oval)")
     p.add_argument("--trains", type=arg_types.whole(1), default=3, help="number of trains (default: 3)")
     p.add_argument("--duration", type=arg_types.seconds, default=120.0, help="simulated seconds (default: 120)")
     p.add_argument("--seed", type=arg_types.seed, default=0)
     p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
-    p.add_argument("--blocks", type=int, default=None, metavar="N",
+    p.add_argument("--blocks", type=arg_types.whole(2), default=None, metavar="N",
                    help="fixed block: N equal blocks instead of the layout's own "
                         "(a loop needs more blocks than trains)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
-    p.add_argument("--start-gap", type=float, default=None, metavar="M",
+    p.add_argument("--start-gap", type=arg_types.number(minimum=0.0, example="0.1"), default=None, metavar="M",
                    help="trains start one behind the other, M metres from a tail to the next head (several in one "
                         "fixed block); default: spread evenly along the layout")
     p.add_argument("--fault", action="append", default=[], metavar="NAME[:PARAM=VALUE,...]",

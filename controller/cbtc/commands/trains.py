@@ -29,8 +29,9 @@ def register(sub):
                    help="seed of the sensor noise and board clocks (default 0)")
     p.add_argument("--duration", type=arg_types.seconds, default=None,
                    help="stop after this many seconds (default: until Ctrl-C)")
-    p.add_argument("--summary-json", default=None, metavar="FILE", help="write the truth-based figures at exit")
-    p.add_argument("--status-json", default=None, metavar="FILE",
+    p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
+                   help="write the truth-based figures at exit")
+    p.add_argument("--status-json", type=arg_types.output_file, default=None, metavar="FILE",
                    help="rewrite the truth-based figures into FILE at every status period")
     p.set_defaults(func=run)
 

@@ -31,10 +31,11 @@ def register(sub):
                    help="seed of the session id and dwell times (default: random, so a restart is a new session)")
     p.add_argument("--duration", type=arg_types.seconds, default=None,
                    help="stop after this many seconds (default: until Ctrl-C)")
-    p.add_argument("--report-budget-hz", type=float, default=400.0, metavar="HZ",
+    p.add_argument("--report-budget-hz", type=arg_types.number(above=0.0, example="400"), default=400.0, metavar="HZ",
                    help="reports a second this machine can answer (default 400: 20 trains at 20 Hz on two cores, "
                         "cbtc bench latency); followed trains are asked for 50 Hz reports within it")
-    p.add_argument("--summary-json", default=None, metavar="FILE", help="write the controller's figures at exit")
+    p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
+                   help="write the controller's figures at exit")
     p.set_defaults(func=run)
 
 

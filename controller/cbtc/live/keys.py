@@ -27,7 +27,7 @@ def load_keys(path: str) -> dict:
             data = json.load(fh)
     except OSError as exc:
         raise ConfigError(f"keys file {path}: {exc.strerror}; "
-                          f"make one with `cbtc keys new --trains A,B --out {path}`") from None
+                          f"make one with `cbtc keys new --train-ids A,B --out {path}`") from None
     except ValueError as exc:
         raise ConfigError(f"keys file {path} is not JSON ({exc}); make one with `cbtc keys new`") from None
     if not isinstance(data, dict) or not data:

@@ -106,7 +106,7 @@ def fleet_config(layout, train_ids=None, count: int = None, scenario: str = "aut
     Given `train_ids`, the scenario's trains take those ids in order."""
     n = len(train_ids) if train_ids else count
     if not n or n < 1:
-        raise ConfigError("give the trains: --trains A,B or --count N (N >= 1)")
+        raise ConfigError("give the trains: --trains N (N >= 1) or --train-ids A,B")
     if scenario == "auto":
         names = {st.name for st in layout.stations}
         scenario = "paper" if n == 2 and {"main", "A", "B"} <= names else "queue"
