@@ -47,7 +47,8 @@ class Fleet:
         err_path = os.path.join(self.folder, tag + ".err")
         proc = subprocess.Popen(cbtc("zone", "--broker", self.broker.url, "--layout", LAYOUT, "--train-ids", "A,B",
                                      "--sim-seed", str(SIM_SEED), "--summary-json",
-                                     os.path.join(self.folder, tag + "-summary.json")),
+                                     os.path.join(self.folder, tag + "-summary.json"), "--status-period", "0.2",
+                                     "--status-json", os.path.join(self.folder, tag + "-status.json")),
                                 stdout=out, stderr=open(err_path, "w"))
         self.zones.append((proc, tag))
         return proc
@@ -63,6 +64,14 @@ class Fleet:
     def status(self):
         try:
             with open(self.status_path) as fh:
+                return json.load(fh)
+        except (OSError, ValueError):
+            return None
+
+    def zone_file(self, tag, kind):
+        """The zone's `kind` ("status" or "summary") JSON file, or None while it is not there yet."""
+        try:
+            with open(os.path.join(self.folder, f"{tag}-{kind}.json")) as fh:
                 return json.load(fh)
         except (OSError, ValueError):
             return None
@@ -213,6 +222,16 @@ def test_broker_killed_trains_stop_within_authority_then_resume(fleet):
     rest = fleet.wait(braked_after_expiry, STOP_WAIT_S + 2,
                       "every train braked within its authority")
     assert time.monotonic() - killed_at < STOP_WAIT_S + 2
+    # the zone hears nothing now: it marks its data stale and keeps the trains where they were last heard of
+    first = fleet.zone_file("zone", "status")
+    assert first is not None and not first["broker_connected"], first
+    assert all(row["stale"] and row["data_age_s"] > 1.0 for row in first["trains"].values()), first
+    time.sleep(1.0)
+    later = fleet.zone_file("zone", "status")
+    assert later["t_s"] > first["t_s"]
+    for train_id, row in later["trains"].items():
+        assert row["stale"] and row["data_age_s"] > first["trains"][train_id]["data_age_s"]
+        assert row["s_m"] == first["trains"][train_id]["s_m"], (train_id, first, later)   # not extrapolated
     distance_m = {t["train"]: t["distance_m"] for t in rest["trains"]}
     time.sleep(1.0)
     still = fleet.status()
@@ -228,7 +247,10 @@ def test_zone_controller_killed_trains_stop_then_a_new_session_resumes(fleet):
     fleet.start_trains(duration_s=30)
     running = fleet.wait(moving, 15, "a train to move")
     old_sid = running["trains"][0]["sid"]
+    fleet.wait(lambda s: s["t_s"] >= running["t_s"] + 0.5, 5, "another status period")
     first.kill()                                   # no goodbye: the trains only see commands stop coming
+    summary = fleet.zone_file("zone1", "summary")  # kept current while it ran: there after a kill
+    assert summary is not None and summary["cycles"] > 0 and summary["session_id"] == old_sid, summary
     rest = fleet.wait(braked_after_expiry, STOP_WAIT_S + 2,
                       "every train braked within its authority")
     distance_m = {t["train"]: t["distance_m"] for t in rest["trains"]}

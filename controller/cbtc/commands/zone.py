@@ -35,7 +35,10 @@ def register(sub):
                    help="reports a second this machine can answer (default 400: 20 trains at 20 Hz on two cores, "
                         "cbtc bench latency); followed trains are asked for 50 Hz reports within it")
     p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
-                   help="write the controller's figures at exit")
+                   help="the controller's figures, rewritten at every status period and at exit")
+    p.add_argument("--status-json", type=arg_types.output_file, default=None, metavar="FILE",
+                   help="every train's position, speed, end of authority, data age, stale flag and faults, rewritten "
+                        "(atomically) at every status period")
     p.set_defaults(func=run)
 
 
@@ -52,9 +55,8 @@ def run(args):
                     report_budget_hz=args.report_budget_hz)
     zc.start()
     cycle = loop.scheduler.call_every(config.cycle_s, zc.cycle, start_s=loop.now_s() + 0.05)
-    if not args.quiet:
-        loop.scheduler.call_every(args.status_period, lambda now_s: _print_status(zc, bus, now_s),
-                                  start_s=loop.now_s() + args.status_period)
+    loop.scheduler.call_every(args.status_period, lambda now_s: _status(zc, bus, loop, args, now_s),
+                              start_s=loop.now_s() + args.status_period)
     ids = [spec.train_id for spec in config.trains]
     print(f"zone {args.zone_id}: {len(ids)} trains {ids} on {layout.name}, broker "
           f"{bus.host}:{bus.port}, session {zc.session_id}", flush=True)
@@ -74,9 +76,25 @@ def run(args):
     return 0
 
 
-def _print_status(zc, bus, now_s):
+def _status(zc, bus, loop, args, now_s):
+    """Every status period: the status line, and the status and summary files (a kill loses at most one period)."""
+    snapshot = zc.snapshot(now_s)
+    if args.status_json:
+        write_json(args.status_json, {"zone_id": args.zone_id, "session_id": zc.session_id, "t_s": round(now_s, 3),
+                                      "broker_connected": bus.connected, "trains": snapshot})
+    if args.summary_json:
+        write_json(args.summary_json, _summary(zc, bus, loop, snapshot))
+    if not args.quiet:
+        _print_status(snapshot, bus, now_s)
+
+
+def _print_status(snapshot, bus, now_s):
     parts = []
-    for train_id, row in zc.snapshot(now_s).items():
+    for train_id, row in snapshot.items():
+        if row["stale"]:   # not heard from within the timeout: where it last was, not where it might be now
+            parts.append(f"{train_id} STALE {row['data_age_s']:.1f}s at s={fmt(row['s_m'])} "
+                         f"lim={fmt(row['limit_s_m'])}")
+            continue
         faults = ",".join(row["faults"]) or "-"
         spread = ""
         if row["ahead_m"] or row["behind_m"]:   # its sensors disagree: the authority covers both stories
@@ -91,8 +109,8 @@ def _print_status(zc, bus, now_s):
     sys.stdout.flush()
 
 
-def _summary(zc, bus, loop):
-    snapshot = zc.snapshot(loop.now_s())
+def _summary(zc, bus, loop, snapshot=None):
+    snapshot = zc.snapshot(loop.now_s()) if snapshot is None else snapshot
     for train_id, row in snapshot.items():
         state = zc.trains[train_id]
         row["station_stops"] = state.dwells

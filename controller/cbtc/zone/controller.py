@@ -568,14 +568,21 @@ class ZoneController:
     # --- supervision ------------------------------------------------------------------------------------------------
 
     def snapshot(self, now_s: float) -> dict:
-        """A JSON-ready picture of every train, as the controller sees it."""
+        """A JSON-ready picture of every train, as the controller sees it. A train not heard from for longer than
+        `max_leader_age_s` is `stale`: its position is where its last report put it, not extrapolated."""
         out = {}
         for train_id, st in self.trains.items():
-            est = st.estimator.estimate(now_s) if st.report is not None and st.estimator.localized else None
+            age_s = None if st.report_recv_s is None else max(0.0, now_s - st.report_recv_s)
+            stale = age_s is not None and age_s > self.params.max_leader_age_s
+            est = None
+            if st.report is not None and st.estimator.localized:
+                est = st.estimator.estimate(st.report_t_s if stale else now_s)
             out[train_id] = {
                 "located": est is not None,
+                "data_age_s": None if age_s is None else round(age_s, 3),
+                "stale": stale,
                 "s_m": None if est is None else round(est.s_m, 4),
-                "v_mps": None if est is None else round(est.v_mps, 4),
+                "v_mps": None if est is None else round(est.v_mps, 4),   # at its last report when stale
                 "sigma_s_m": None if est is None else round(est.sigma_s_m, 4),
                 "limit_s_m": None if st.limit_s is None else round(st.limit_s, 4),
                 "leader_data_age_s": None if st.leader_data_t_s is None else round(now_s - st.leader_data_t_s, 3),
