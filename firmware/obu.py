@@ -470,8 +470,11 @@ class OnboardUnit:
             self.duty_pct = 0
             self.motor.brake()
             return
-        self.duty_pct = int(max(0.0, min(100.0, duty)))
-        self.motor.drive(self.duty_pct)
+        duty_pct = int(max(0.0, min(100.0, duty)))
+        if duty_pct > 30 >= self.duty_pct:   # the stall clock runs from when the drive is applied, not from standstill
+            self._last_move_ms = now_ms
+        self.duty_pct = duty_pct
+        self.motor.drive(duty_pct)
 
     def _brake(self):
         self._ref_mm = 0.0   # braked, the reference asks no travel: none carried over to the next start

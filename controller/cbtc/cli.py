@@ -16,7 +16,7 @@ from cbtc.errors import CbtcError
 COMMANDS = (
     "demo",
     "sim",
-    "layout",
+    "layout", "scenario",
     "fusion",
     "compare",
     "ranging",

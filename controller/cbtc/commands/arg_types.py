@@ -176,3 +176,16 @@ def broker_url(text):
     except ConfigError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
+
+
+def scenario(text):
+    """A scenario file or packaged name, read and checked now: its ScenarioConfig."""
+    from cbtc.errors import ConfigError
+    from cbtc.scenario_files import load_scenario
+    try:
+        return load_scenario(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+scenario.__name__ = "scenario"

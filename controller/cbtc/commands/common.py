@@ -3,6 +3,7 @@
 import json
 import os
 import sys
+from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
@@ -118,3 +119,25 @@ def fleet_from_args(args, layout, seed: int = 0):
     config = fleet_config(layout, ids, count, args.scenario, seed=seed)
     train_ids = [spec.train_id for spec in config.trains]
     return config, train_keys(train_ids, args.keys, args.sim_seed)
+
+
+SCENARIO_HELP = "a scenario file or packaged name (cbtc scenario list): layout, trains, stops, seed, duration, faults"
+
+
+def with_scenario(args, defaults: dict, fixed=(), overrides=None):
+    """With `args.scenario` (a ScenarioConfig): refuse the flags in `fixed` (the file sets them) and return the
+    scenario with the flags given of `overrides` ({args attribute: config field}) put over it; else None. Then fill
+    `args`' unset values (None) from `defaults`."""
+    config = getattr(args, "scenario", None)
+    if config is not None:
+        for name in fixed:
+            if getattr(args, name, None) not in (None, [], ""):
+                flag = "--" + name.replace("_", "-")
+                raise ConfigError(f"{flag}: the scenario {config.name} sets it; leave {flag} out or edit the file")
+        changes = {field: getattr(args, name) for name, field in (overrides or {}).items()
+                   if getattr(args, name, None) is not None}
+        config = replace(config, **changes)
+    for name, value in defaults.items():
+        if getattr(args, name, None) is None:
+            setattr(args, name, value)
+    return config

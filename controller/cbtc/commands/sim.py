@@ -1,7 +1,10 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
+from dataclasses import replace
+
 from cbtc.commands import arg_types
-from cbtc.commands.common import run_scenario_and_report
+from cbtc.commands.common import SCENARIO_HELP, run_scenario_and_report, with_scenario
+from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
 from cbtc.sim import faults
 from cbtc.sim.runs import sim_config
@@ -9,16 +12,20 @@ from cbtc.sim.runs import sim_config
 
 def register(sub):
     p = sub.add_parser("sim", help="simulate N trains on a layout", description=__doc__)
-    p.add_argument("--layout", type=arg_types.layout, default="lego_oval",
+    p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE", help=SCENARIO_HELP)
+    p.add_argument("--layout", type=arg_types.layout, default=None,
                    help="layout file or packaged name (default: lego_oval)")
-    p.add_argument("--trains", type=arg_types.whole(1), default=3, help="number of trains (default: 3)")
-    p.add_argument("--duration", type=arg_types.seconds, default=120.0, help="simulated seconds (default: 120)")
-    p.add_argument("--seed", type=arg_types.seed, default=0)
-    p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
+    p.add_argument("--trains", type=arg_types.train_count, default=None, help="number of trains (default: 3)")
+    p.add_argument("--duration", type=arg_types.seconds, default=None,
+                   help="simulated seconds (default: 120, or the scenario's)")
+    p.add_argument("--seed", type=arg_types.seed, default=None, help="random seed (default: 0, or the scenario's)")
+    p.add_argument("--policy", choices=("moving_block", "fixed_block"), default=None,
+                   help="authority policy (default: moving_block, or the scenario's)")
     p.add_argument("--blocks", type=arg_types.whole(2), default=None, metavar="N",
                    help="fixed block: N equal blocks instead of the layout's own "
                         "(a loop needs more blocks than trains)")
-    p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
+    p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
+                   help="position estimator (default: ukf, or the scenario's)")
     p.add_argument("--start-gap", type=arg_types.number(minimum=0.0, example="0.1"), default=None, metavar="M",
                    help="trains start one behind the other, M metres from a tail to the next head (several in one "
                         "fixed block); default: spread evenly along the layout")
@@ -31,7 +38,22 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+DEFAULTS = {"layout": "lego_oval", "trains": 3, "duration": 120.0, "seed": 0, "policy": "moving_block",
+            "estimator": "ukf"}
+
+
 def run(args):
+    config = with_scenario(args, DEFAULTS, fixed=("layout", "trains", "start_gap"),
+                           overrides={"seed": "seed", "duration": "duration_s", "policy": "policy",
+                                      "estimator": "estimator"})
+    if config is not None:
+        if args.blocks is not None:
+            config = replace(config, policy_options={**config.policy_options, "blocks": args.blocks})
+        if config.policy_options.get("blocks") is not None and config.policy != "fixed_block":
+            raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
+        config = replace(config, faults=config.faults + tuple(faults.parse(text) for text in args.fault))
+        title = f"scenario {config.name}: {len(config.trains)} trains on {config.layout.name}, seed {config.seed}"
+        return run_scenario_and_report(config, title, args)
     layout = load_layout(args.layout)
     config = sim_config(layout, args.trains, args.seed, args.duration, args.policy, args.estimator, args.blocks,
                         args.fault, start_gap_m=args.start_gap)

@@ -17,6 +17,7 @@ class TrainSpec:
     s0_m: float
     stops: tuple = ()
     profile: TrainProfile = field(default_factory=TrainProfile)
+    dwell_s: tuple = None            # (low, high) s at each stop; None: the scenario's
 
 
 @dataclass
@@ -43,6 +44,7 @@ class ScenarioConfig:
     obu_overrides: dict = None       # OnboardUnit settings for every train (firmware/obu.py DEFAULTS), e.g. report_ms
     report_budget_hz: float = 400.0  # reports a second the zone controller is sized for (fast reports within it)
     faults: tuple = ()               # cbtc.sim.faults.Fault values injected into the simulated world
+    name: str = None                 # the scenario file's name, for titles
 
 
 def train_key(seed: int, train_id: str) -> bytes:

@@ -39,7 +39,8 @@ def make_estimator_factory(name: str):
 def build_zone(config: ScenarioConfig, keys: dict, client, now_fn, zone_id: str = "zc1", seed: int = None,
                report_budget_hz: float = None) -> ZoneController:
     """The ZoneController of `config`'s trains on `client`, with keys {train_id: key}, reading time from `now_fn`."""
-    setups = [TrainSetup(spec.train_id, keys[spec.train_id], spec.profile, tuple(spec.stops), config.dwell_s)
+    setups = [TrainSetup(spec.train_id, keys[spec.train_id], spec.profile, tuple(spec.stops),
+                         spec.dwell_s or config.dwell_s)
               for spec in config.trains]
     return ZoneController(config.layout, setups, client, now_fn, make_policy(config), config.params,
                           make_estimator_factory(config.estimator), config.cycle_s, zone_id=zone_id,
