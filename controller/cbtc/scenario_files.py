@@ -325,7 +325,8 @@ def _faults(r, data, train_ids):
     for i, item in enumerate(items):
         where = f"faults[{i}]"
         if not isinstance(item, dict) or "name" not in item:
-            r.fail(items, i, where, f"must be a mapping with a name, one of {', '.join(sorted(fault_catalogue.FAULTS))}")
+            names = ", ".join(sorted(fault_catalogue.FAULTS))
+            r.fail(items, i, where, f"must be a mapping with a name, one of {names}")
         params = {k: v for k, v in item.items() if k != "name"}
         if "train" in params and str(params["train"]) not in train_ids:
             r.fail(item, "train", f"{where}.train", f"no train {params['train']!r} in this scenario; one of "
