@@ -337,3 +337,27 @@ def test_bench_latency_answers_every_report_within_a_cycle(mosquitto):
     assert figures["reports_answered"] >= figures["reports_published"] - 3
     assert figures["answer_wait_ms"]["max"] <= 100.0 + 20.0               # answered at once, at worst by the next cycle
     assert 0.0 < figures["transport_rtt_ms"]["p50"] < 20.0                # loopback with TCP_NODELAY: milliseconds
+
+
+def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
+    """Both sides of a live run read the same scenario file: its ids, starts, stops and profiles."""
+    scenario = tmp_path / "pair.yaml"
+    scenario.write_text("layout: lego_oval\ntrains:\n  - {id: P1, start: south, profile: {length_m: 0.25}}\n"
+                        "  - {id: F1, start: 2.5, stops: [north], dwell_s: 1}\n"
+                        "faults:\n  - {name: stop_dead, train: F1, at_s: 100}\n")
+    summary = str(tmp_path / "trains.json")
+    zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration", "14",
+                                 "--quiet", "--summary-json", str(tmp_path / "zone.json")),
+                            stdout=subprocess.DEVNULL, stderr=open(tmp_path / "zone.err", "w"))
+    trains = subprocess.run(cbtc("trains", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration",
+                                 "12", "--quiet", "--summary-json", summary), capture_output=True, text=True,
+                            timeout=60)
+    assert zone.wait(30) == 0, (tmp_path / "zone.err").read_text()
+    assert trains.returncode == 0, trains.stderr
+    assert "the faults of scenario pair are for cbtc sim" in trains.stderr
+    with open(summary) as fh:
+        truth = json.load(fh)
+    assert truth["collisions"] == 0 and {t["train"] for t in truth["trains"]} == {"P1", "F1"}
+    assert all(t["distance_m"] > 1.0 and within_authority(t) for t in truth["trains"]), truth
+    with open(tmp_path / "zone.json") as fh:
+        assert json.load(fh)["trains"]["F1"]["station_stops"] >= 1

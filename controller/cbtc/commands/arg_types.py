@@ -189,3 +189,15 @@ def scenario(text):
 
 
 scenario.__name__ = "scenario"
+
+
+FLEET_PRESETS = ("auto", "paper", "queue")
+
+
+def fleet_scenario(text):
+    """A live fleet's scenario: a preset (auto, paper, queue) as is, or a scenario file or packaged name, read and
+    checked now (its ScenarioConfig)."""
+    return text if text in FLEET_PRESETS else scenario(text)
+
+
+fleet_scenario.__name__ = "scenario"

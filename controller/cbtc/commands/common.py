@@ -7,6 +7,7 @@ from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
+from cbtc.layout_files import load_layout
 from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, train_keys
 from cbtc.zone.config import fleet_config
 
@@ -90,16 +91,17 @@ def add_connection_args(p, broker_default=None) -> None:
 
 def add_fleet_args(p) -> None:
     """--layout, --trains/--train-ids, --scenario, --keys/--sim-seed: which trains, where, with which keys."""
-    p.add_argument("--layout", type=arg_types.layout, required=True,
-                   help="layout file or packaged name, e.g. itb_square")
+    p.add_argument("--layout", type=arg_types.layout, default=None,
+                   help="layout file or packaged name, e.g. itb_square (required unless --scenario FILE names it)")
     p.add_argument("--trains", type=arg_types.train_count, default=None, metavar="N",
                    help="number of trains, named by the scenario (default 2, or as many as --train-ids)")
     p.add_argument("--train-ids", type=arg_types.train_ids, default=None, metavar="A,B",
                    help="the trains' ids, in the scenario's order, e.g. A,B")
     arg_types.renamed(p, "--count", "--trains N")
-    p.add_argument("--scenario", choices=("auto", "paper", "queue"), default="auto",
-                   help="start positions and stops: paper (2 trains, stations main/A/B) or queue; auto picks paper "
-                        "when it fits")
+    p.add_argument("--scenario", type=arg_types.fleet_scenario, default="auto", metavar="NAME|FILE",
+                   help="the trains' ids, start positions, stops and profiles: paper (2 trains, stations main/A/B), "
+                        "queue (N trains spread along the layout), auto (paper when it fits; default), or a "
+                        "scenario file or packaged name (cbtc scenario list)")
     p.add_argument("--keys", type=arg_types.input_file, default=None, metavar="FILE",
                    help="JSON keys file {train_id: hex key} (cbtc keys new)")
     p.add_argument("--sim-seed", type=arg_types.seed, default=0,
@@ -109,8 +111,25 @@ def add_fleet_args(p) -> None:
     p.add_argument("--quiet", action="store_true", help="no status lines")
 
 
-def fleet_from_args(args, layout, seed: int = 0):
+def fleet_from_args(args, seed: int = 0):
     """(ScenarioConfig, {train_id: key}) from the fleet options."""
+    if not isinstance(args.scenario, str):   # a scenario file: it names the layout and the trains
+        config = args.scenario
+        for flag, value in (("--trains", args.trains), ("--train-ids", args.train_ids)):
+            if value is not None:
+                raise ConfigError(f"{flag}: the scenario {config.name} sets the trains; leave {flag} out or edit it")
+        if args.layout is not None and load_layout(args.layout).source != config.layout.source:
+            raise ConfigError(f"--layout {args.layout}: the scenario {config.name} runs on {config.layout.name}; "
+                              f"leave --layout out or give that one")
+        if config.faults:
+            print(f"note: the faults of scenario {config.name} are for cbtc sim; a real broker runs without them",
+                  file=sys.stderr)
+        train_ids = [spec.train_id for spec in config.trains]
+        return config, train_keys(train_ids, args.keys, args.sim_seed)
+    if args.layout is None:
+        raise ConfigError("--layout: give the layout (a file or a packaged name such as itb_square), or a "
+                          "--scenario FILE that names it")
+    layout = load_layout(args.layout)
     ids = args.train_ids
     if ids and args.trains is not None and args.trains != len(ids):
         raise ConfigError(f"--trains {args.trains} and --train-ids {','.join(ids)} disagree: give one of them, or "

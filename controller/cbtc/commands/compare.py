@@ -1,19 +1,23 @@
-"""`cbtc compare`: moving block with Takagi control against the fixed-block baseline, on the paper's scenario."""
+"""`cbtc compare`: moving block with Takagi control against the fixed-block baseline, on the paper's scenario or a
+scenario file."""
+
+from dataclasses import replace
 
 from cbtc.authority.speed_code_channel import SpeedCodeChannel
 from cbtc.commands import arg_types
-from cbtc.commands.common import format_table, print_json
+from cbtc.commands.common import SCENARIO_HELP, format_table, print_json, with_scenario
 from cbtc.errors import ConfigError
 from cbtc.experiments.headway import (
     PAPER,
     block_sweep,
     check_block_counts,
     reductions,
-    run_paper_systems,
+    run_systems,
     steady_following,
 )
 from cbtc.experiments.plots import distance_time_png
 from cbtc.layout_files import load_layout
+from cbtc.zone.config import paper_scenario
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
            ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("trains_per_hour", "trains/h"),
@@ -39,9 +43,12 @@ def _following_row(f):
 def register(sub):
     p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
                        description=__doc__)
-    p.add_argument("--layout", type=arg_types.layout, default="itb_square",
-                   help="layout file or packaged name (default: itb_square)")
-    p.add_argument("--laps", type=arg_types.whole(1), default=5)
+    p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE",
+                   help=SCENARIO_HELP + " (default: the paper's two trains)")
+    p.add_argument("--layout", type=arg_types.layout, default=None,
+                   help="layout file or packaged name for the paper scenario (default: itb_square)")
+    p.add_argument("--laps", type=arg_types.whole(1), default=None,
+                   help="laps each train completes (default: 5, or the scenario's)")
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",
                    help="also run the steady-following experiment with every report at these periods (ms), e.g. "
@@ -52,7 +59,7 @@ def register(sub):
     p.add_argument("--code-ber", type=arg_types.number(minimum=0.0, maximum=0.5, example="0.001"), default=0.0,
                    metavar="P",
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
-    p.add_argument("--seed", type=arg_types.seed, default=0)
+    p.add_argument("--seed", type=arg_types.seed, default=None, help="random seed (default: 0, or the scenario's)")
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="",
                    help="distance-time plot of both systems (the paper's Figure 4)")
@@ -82,33 +89,45 @@ def run(args):
                           "0.3,0.5")
     counts = _number_list(args.blocks, "--blocks", int, 2, 10000, "a whole number >= 2", "3,4,8")
     SpeedCodeChannel(args.code_ber)
-    layout = load_layout(args.layout)
-    check_block_counts(layout, counts, seed=args.seed)
-    systems, recorders = run_paper_systems(layout, seed=args.seed, laps=args.laps, code_ber=args.code_ber)
+    base = with_scenario(args, {"layout": "itb_square", "seed": 0}, fixed=("layout",), overrides={"seed": "seed"})
+    if base is None:
+        laps = args.laps or 5
+        layout = load_layout(args.layout)
+        base = paper_scenario(layout, seed=args.seed, laps=laps, duration_s=80.0 * laps)
+        title = f"paper scenario on {layout.name}, seed {args.seed}"
+    else:
+        if args.laps is not None:
+            base = replace(base, laps=args.laps, duration_s=max(base.duration_s, 80.0 * args.laps))
+        layout, args.seed = base.layout, base.seed
+        title = f"scenario {base.name}: {len(base.trains)} trains on {layout.name}, seed {base.seed}"
+    check_block_counts(layout, counts, base=base)
+    systems, recorders = run_systems(base, code_ber=args.code_ber)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
     following = steady_following(layout, seed=args.seed)
     by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in report_periods]
     by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
-    sweep = block_sweep(layout, counts, seed=args.seed) if counts else []
-    result = {"layout": layout.name, "seed": args.seed, "systems": systems, "reductions": cuts,
+    sweep = block_sweep(layout, counts, base=base) if counts else []
+    result = {"layout": layout.name, "seed": args.seed, "scenario": base.name, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
               "following_by_speed": by_speed,
               "block_sweep": sweep}
     if args.plot:
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
                           ["fixed block (baseline)", "moving block + Takagi control"], args.plot,
-                          paper_note="paper: gap 1.89 m -> 0.91 m (-52 %), lap 15.72 s -> 6.84 s (-56 %)")
+                          paper_note="paper: gap 1.89 m -> 0.91 m (-52 %), lap 15.72 s -> 6.84 s (-56 %)"
+                          if base.name in (None, "paper_itb") else None)
     if args.json:
         print_json(result)
         return 0
-    print(f"paper scenario on {layout.name}, seed {args.seed}")
+    print(title)
     print(format_table([systems["fixed_block"], systems["moving_block"]], COLUMNS))
     codes = systems["fixed_block"]["speed_code_telegrams"]
     print(f"fixed-block speed codes as telegrams (bit-error rate {args.code_ber}): {codes['sent']} sent, "
           f"{codes['ok']} clean, {codes['corrected']} corrected, {codes['detected']} rejected (lowest code given), "
           f"{codes['undetected']} wrong")
-    print(f"moving block vs fixed block: gap -{cuts['gap_reduction_pct']} % (paper -52 %), "
-          f"lap time -{cuts['lap_reduction_pct']} % (paper -56 %)")
+    paper = base.name in (None, "paper_itb")
+    print(f"moving block vs fixed block: gap -{cuts['gap_reduction_pct']} %{' (paper -52 %)' if paper else ''}, "
+          f"lap time -{cuts['lap_reduction_pct']} %{' (paper -56 %)' if paper else ''}")
     print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed; floor: "
           "the ratio with a perfect speed loop and estimates (only the leader's travel since its data, k sigma and "
           "the stop window left); where the overhead goes, in cm, measured against truth")

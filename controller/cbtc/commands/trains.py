@@ -13,7 +13,6 @@ from cbtc.bus.broker_config import train_user
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, write_json
-from cbtc.layout_files import load_layout
 from cbtc.live.keys import credentials
 from cbtc.live.loop import LiveLoop
 from cbtc.protocol import wire
@@ -37,8 +36,8 @@ def register(sub):
 
 
 def run(args):
-    layout = load_layout(args.layout)
-    config, keys = fleet_from_args(args, layout, seed=args.seed)
+    config, keys = fleet_from_args(args, seed=args.seed)
+    layout = config.layout
     loop = LiveLoop()
     trains = []
     try:

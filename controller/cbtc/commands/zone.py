@@ -11,7 +11,6 @@ import sys
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, fmt, write_json
-from cbtc.layout_files import load_layout
 from cbtc.live.keys import credentials
 from cbtc.live.loop import LiveLoop
 from cbtc.protocol import wire
@@ -25,8 +24,10 @@ def register(sub):
     add_connection_args(p)
     add_fleet_args(p)
     p.add_argument("--zone-id", default="zc1", help="zone id in cbtc/zc/<id>/status (default zc1)")
-    p.add_argument("--policy", choices=("moving_block", "fixed_block"), default="moving_block")
-    p.add_argument("--estimator", choices=("ukf", "odometry"), default="ukf")
+    p.add_argument("--policy", choices=("moving_block", "fixed_block"), default=None,
+                   help="authority policy (default: moving_block, or the scenario's)")
+    p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
+                   help="position estimator (default: ukf, or the scenario's)")
     p.add_argument("--seed", type=arg_types.seed, default=None,
                    help="seed of the session id and dwell times (default: random, so a restart is a new session)")
     p.add_argument("--duration", type=arg_types.seconds, default=None,
@@ -43,10 +44,11 @@ def register(sub):
 
 
 def run(args):
-    layout = load_layout(args.layout)
     seed = secrets.randbits(31) if args.seed is None else args.seed
-    config, keys = fleet_from_args(args, layout)
-    config.policy, config.estimator = args.policy, args.estimator
+    config, keys = fleet_from_args(args)
+    layout = config.layout
+    config.policy = args.policy or config.policy
+    config.estimator = args.estimator or config.estimator
     username, password = credentials("zc", args.username, args.password, args.credentials)
     loop = LiveLoop()
     bus = PahoBus(args.broker, f"zc-{args.zone_id}", status_topic=wire.topic_zone_status(args.zone_id),

@@ -4,6 +4,8 @@ Pure runners over `cbtc.sim.simulation`: each takes a seed and returns plain dic
 the tests and anyone's notebook get the same numbers.
 """
 
+from dataclasses import replace
+
 import numpy as np
 
 from cbtc.authority.rules import AuthorityParams, minimum_gap_m
@@ -18,15 +20,22 @@ PAPER = {"fixed_gap_m": 1.89, "cbtc_gap_m": 0.91, "fixed_lap_s": 15.72, "cbtc_la
          "gap_reduction_pct": 52.0, "lap_reduction_pct": 56.0}
 
 
+def followers(recorder):
+    """Indices of the trains that followed: those the train ahead limited at some time in the run (train B of the
+    paper scenario); every train if none did."""
+    n = len(recorder.sim.trains)
+    return [i for i in range(n) if any(recorder.constrained[i])] or list(range(n))
+
+
 def system_figures(recorder):
-    """Gap, lap time, throughput and safety figures of one run of the paper scenario (train B follows train A)."""
+    """Gap, lap time, throughput and safety figures of one run: the gaps are those of the trains that followed
+    (`followers`: train B of the paper scenario)."""
     summary = recorder.summary()
     t = np.asarray(recorder.t_s)
-    follower = 1  # B
-    gap = np.asarray(recorder.gap_m[follower])
-    v_a = np.asarray(recorder.v_mps[0])
-    v_b = np.asarray(recorder.v_mps[follower])
-    following = np.asarray(recorder.constrained[follower], dtype=bool)
+    behind = followers(recorder)
+    gap = np.concatenate([np.asarray(recorder.gap_m[i], dtype=float) for i in behind])
+    following = np.concatenate([np.asarray(recorder.constrained[i], dtype=bool) for i in behind])
+    top_mps = max(float(np.max(v)) for v in recorder.v_mps) if len(t) else 0.0
     laps = [lap for i in range(len(recorder.sim.trains)) for lap in recorder.lap_times(i)]
     total_laps = sum(len(recorder.lap_times(i)) for i in range(len(recorder.sim.trains)))
     duration_s = float(t[-1]) if len(t) else 0.0
@@ -38,7 +47,7 @@ def system_figures(recorder):
         "min_gap_m": round(float(np.min(gap)), 3),
         "mean_lap_s": round(float(np.mean(laps)), 3) if laps else None,
         "trains_per_hour": round(3600.0 * total_laps / duration_s, 1) if duration_s else None,
-        "max_speed_mps": round(float(max(np.max(v_a), np.max(v_b))), 3),
+        "max_speed_mps": round(top_mps, 3),
         "collisions": summary["collisions"],
         "authority_overruns": summary["authority_overruns"],
         "emergency_trips": summary["emergency_trips"],
@@ -47,14 +56,21 @@ def system_figures(recorder):
 
 
 def run_paper_systems(layout, seed=0, laps=5, blocks=None, estimator="ukf", code_ber=0.0):
-    """The paper scenario under moving block (with Takagi control) and under fixed blocks, whose speed codes reach
-    the trains as telegrams with bit-error rate `code_ber`; returns (figures, recorders)."""
+    """The paper scenario under moving block (with Takagi control) and under fixed blocks; see `run_systems`."""
+    base = paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, estimator=estimator)
+    return run_systems(base, blocks, code_ber)
+
+
+def run_systems(base: ScenarioConfig, blocks=None, code_ber=0.0):
+    """The scenario `base` under moving block (with Takagi control) and under fixed blocks (`blocks` equal ones, or
+    the scenario's or the layout's own), whose speed codes reach the trains as telegrams with bit-error rate
+    `code_ber`; returns (figures, recorders)."""
     results, recorders = {}, {}
     for policy in ("moving_block", "fixed_block"):
-        options = {} if policy == "moving_block" else {"blocks": blocks, "code_ber": code_ber}
-        config = paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, policy=policy,
-                                estimator=estimator, policy_options=options)
-        sim = Simulation(config)
+        options = {}
+        if policy == "fixed_block":
+            options = {"blocks": blocks or base.policy_options.get("blocks"), "code_ber": code_ber}
+        sim = Simulation(replace(base, policy=policy, policy_options=options))
         if policy == "fixed_block":
             sim.policy.track_circuits = _truth_spans(sim)
         recorders[policy] = sim.run()
@@ -163,28 +179,29 @@ def _overhead_budget(config, profile, basis, steady, t, cseq, eoa_ahead_m, leade
     return {name: round(float(np.mean(values)), 4) for name, values in terms.items()}
 
 
-def check_block_counts(layout, counts, seed=0):
-    """Raise ConfigError naming the first block count of `counts` the paper scenario's fixed block refuses (no more
-    blocks than trains on the loop, or a count the layout cannot be cut into): checked before any run starts."""
+def check_block_counts(layout, counts, seed=0, base: ScenarioConfig = None):
+    """Raise ConfigError naming the first block count of `counts` the fixed block of `base` (default: the paper
+    scenario) refuses (no more blocks than trains on the loop, or a count the layout cannot be cut into): checked
+    before any run starts."""
     from cbtc.zone.factory import make_policy
+    base = base or paper_scenario(layout, seed=seed)
     for count in counts:
-        config = paper_scenario(layout, seed=seed, policy="fixed_block", policy_options={"blocks": int(count)})
         try:
-            make_policy(config)
+            make_policy(replace(base, policy="fixed_block", policy_options={"blocks": int(count)}))
         except ConfigError as exc:
             raise ConfigError(f"--blocks {count}: {exc}") from None
 
 
-def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf"):
-    """Fixed-block figures for each block count: the baseline approaches moving block as blocks shrink."""
+def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf", base: ScenarioConfig = None):
+    """Fixed-block figures for each block count of `base` (default: the paper scenario): the baseline approaches
+    moving block as blocks shrink."""
+    base = base or paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, estimator=estimator)
     rows = []
     for count in counts:
-        config = paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, policy="fixed_block",
-                                estimator=estimator, policy_options={"blocks": int(count)})
-        sim = Simulation(config)
+        sim = Simulation(replace(base, policy="fixed_block", policy_options={"blocks": int(count)}))
         sim.policy.track_circuits = _truth_spans(sim)
         figures = system_figures(sim.run())
         figures["blocks"] = int(count)
-        figures["block_length_m"] = round(layout.length_m / int(count), 3)
+        figures["block_length_m"] = round(base.layout.length_m / int(count), 3)
         rows.append(figures)
     return rows
