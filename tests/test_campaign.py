@@ -136,3 +136,30 @@ def test_a_terminal_sees_a_progress_bar_with_the_time_left_and_json_sees_none(tm
     quiet = subprocess.run(argv[:-2] + ["--results", str(tmp_path / "q.jsonl"), "--json", "--runs", "1"],
                            capture_output=True, text=True, timeout=60)
     assert "━" not in quiet.stderr and json.loads(quiet.stdout)["runs"] == 1
+
+
+def test_a_campaign_over_a_scenario_file_draws_faults_for_its_trains_and_reproduces_each_run(tmp_path, capsys):
+    results = str(tmp_path / "r.jsonl")
+    argv = ["campaign", "--scenario", "lego_oval_mixed", "--runs", "3", "--duration", "8", "--results", results,
+            "--fault", "ips_offset", "--fault", "stop_dead", "--workers", "1"]
+    status, out = figures(capsys, argv)
+    assert status == 0 and out["runs_made"] == 3
+    with open(results) as fh:
+        records = [json.loads(line) for line in fh]
+    for record in records:
+        assert record["command"].startswith("cbtc sim --scenario lego_oval_mixed --seed ")
+        for text in record["spec"]["faults"]:
+            assert faults.parse(text).params["train"] in ("P1", "F1", "S1")
+    again = records[0]
+    assert main(shlex.split(again["command"])[1:] + ["--json"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    assert alone["granted_beyond_m"] == again["summary"]["granted_beyond_m"]
+    assert alone["min_gap_m"] == again["summary"]["min_gap_m"]
+
+
+@pytest.mark.parametrize("extra,named", [(["--trains", "2"], "--trains: the scenario lego_oval_mixed sets"),
+                                         (["--fault", "packed_start"], "sets where the trains start"),
+                                         (["--fault", "stop_dead:train=T9"], "no train T9 in scenario")])
+def test_a_scenario_campaign_refuses_what_the_file_sets(capsys, extra, named):
+    assert main(["campaign", "--scenario", "lego_oval_mixed", "--runs", "2"] + extra) == 2
+    assert named in capsys.readouterr().err

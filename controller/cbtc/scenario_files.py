@@ -5,7 +5,7 @@ docs/scenarios.md and in the shipped examples (`cbtc scenario list`)."""
 import difflib
 import math
 import os
-from dataclasses import fields
+from dataclasses import fields, replace
 from importlib import resources
 
 import yaml
@@ -110,7 +110,7 @@ def load_scenario(path_or_name) -> ScenarioConfig:
         raise ConfigError(f"{source}:{exc.line}: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{source}: cannot read it as a UTF-8 text file: {exc}") from None
-    return scenario_from_dict(data, source)
+    return replace(scenario_from_dict(data, source), source=str(path_or_name))
 
 
 class _Reader:

@@ -13,7 +13,7 @@ import sys
 import time
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import format_table, print_json
+from cbtc.commands.common import SCENARIO_HELP, format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments import campaign
 from cbtc.sim.runs import sim_config
@@ -29,9 +29,12 @@ def register(sub):
     p.add_argument("--fault", action="append", default=[], metavar="CLASS[:PARAM=VALUE,...]",
                    help="a fault class to run (repeatable; default: every class); parameters given are kept, the "
                         "others drawn per run; classes: " + ", ".join(campaign.CLASSES))
-    p.add_argument("--layouts", default=",".join(campaign.LAYOUTS), metavar="NAMES",
+    p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE",
+                   help=SCENARIO_HELP + ": every run is it, with the run's seed and a fault drawn for its trains "
+                        "(instead of --layouts and --trains)")
+    p.add_argument("--layouts", default=None, metavar="NAMES",
                    help=f"layouts, comma-separated (default {','.join(campaign.LAYOUTS)})")
-    p.add_argument("--trains", default="2-6", metavar="COUNTS",
+    p.add_argument("--trains", default=None, metavar="COUNTS",
                    help="fleet sizes: a range 2-6 or a list 2,4 (default 2-6)")
     p.add_argument("--duration", type=arg_types.seconds, default=60.0, help="simulated seconds per run (default 60)")
     p.add_argument("--seed", type=arg_types.seed, default=0,
@@ -72,6 +75,10 @@ def checked_plan(args):
         raise ConfigError(f"--seed {args.seed}: give a whole number >= 0")
     if args.workers < 1:
         raise ConfigError(f"--workers {args.workers}: give 1 or more")
+    if args.scenario is not None:
+        return _scenario_plan(args)
+    args.layouts = args.layouts or ",".join(campaign.LAYOUTS)
+    args.trains = args.trains or "2-6"
     classes = campaign.parse_classes(args.fault or campaign.CLASSES)
     layouts = tuple(name.strip() for name in args.layouts.split(",") if name.strip())
     if not layouts:
@@ -88,6 +95,28 @@ def checked_plan(args):
             if train and (not train[1:].isdigit() or int(train[1:]) > spec.trains):
                 raise ConfigError(f"--fault {text}: no train {train} in a run of {spec.trains} trains "
                                   f"({spec.command()})")
+    return specs
+
+
+def _scenario_plan(args):
+    """Every run the scenario file of `args.scenario`, with the run's seed and a drawn fault of a chosen class."""
+    for flag, value in (("--layouts", args.layouts), ("--trains", args.trains)):
+        if value is not None:
+            raise ConfigError(f"{flag}: the scenario {args.scenario.name} sets the layout and the trains; leave "
+                              f"{flag} out or edit the file")
+    if any(text.partition(":")[0] == campaign.PACKED for text in args.fault):
+        raise ConfigError(f"--fault {campaign.PACKED}: the scenario {args.scenario.name} sets where the trains "
+                          f"start; choose another class")
+    classes = campaign.parse_classes(args.fault or [c for c in campaign.CLASSES if c != campaign.PACKED])
+    ids = [spec.train_id for spec in args.scenario.trains]
+    specs = campaign.plan(args.runs, classes, (), (), args.duration, args.seed,
+                          scenario=(args.scenario.source, args.scenario))
+    for spec in specs:
+        for text in spec.faults:
+            train = campaign.faults.parse(text).params.get("train", "")
+            if train and train not in ids:
+                raise ConfigError(f"--fault {text}: no train {train} in scenario {args.scenario.name} ({ids})")
+        spec.config()
     return specs
 
 

@@ -17,7 +17,7 @@ import math
 import os
 import random
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 from cbtc.errors import ConfigError
 from cbtc.sim import faults
@@ -79,11 +79,13 @@ class RunSpec:
     policy: str = "moving_block"
     blocks: int = None          # fixed block: that many equal blocks (None: the layout's own)
     start_gap_m: float = None   # the trains start one behind the other this far apart (None: spread evenly)
+    scenario: str = None        # a scenario file or name: its layout, trains and faults (the drawn fault added)
 
     def command(self) -> str:
         """The `cbtc sim` command that makes this run alone."""
-        words = ["cbtc sim", f"--layout {self.layout}", f"--trains {self.trains}", f"--seed {self.seed}",
-                 f"--duration {self.duration_s:g}"]
+        where = [f"--scenario {self.scenario}"] if self.scenario else [f"--layout {self.layout}",
+                                                                       f"--trains {self.trains}"]
+        words = ["cbtc sim", *where, f"--seed {self.seed}", f"--duration {self.duration_s:g}"]
         if self.policy != "moving_block":
             words.append(f"--policy {self.policy}")
         if self.blocks is not None:
@@ -95,6 +97,11 @@ class RunSpec:
     def config(self):
         """The ScenarioConfig of this run, as `cbtc sim` builds it from the command; ConfigError for a bad value."""
         from cbtc.sim.runs import sim_config
+        if self.scenario:
+            from cbtc.scenario_files import load_scenario
+            config = load_scenario(self.scenario)
+            return replace(config, seed=self.seed, duration_s=self.duration_s,
+                           faults=config.faults + tuple(faults.parse(text) for text in self.faults))
         return sim_config(self.layout, self.trains, self.seed, self.duration_s, self.policy, blocks=self.blocks,
                           fault_texts=self.faults, start_gap_m=self.start_gap_m)
 
@@ -116,9 +123,18 @@ def parse_classes(texts) -> list:
     return classes
 
 
-def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int) -> list:
-    """The RunSpecs of a campaign of `runs` runs (module docstring: which run is which)."""
+def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int, scenario=None) -> list:
+    """The RunSpecs of a campaign of `runs` runs (module docstring: which run is which); with `scenario` (its name or
+    file, and its ScenarioConfig), every run is that scenario with its seed and a fault drawn for its trains."""
     specs = []
+    if scenario is not None:
+        name, config = scenario
+        ids = [spec.train_id for spec in config.trains]
+        for k in range(runs):
+            cls = classes[k % len(classes)]
+            drawn = draw_faults(cls, seed + k, len(ids), duration_s, ids)
+            specs.append(RunSpec(cls, config.layout.name, len(ids), seed + k, duration_s, drawn, scenario=name))
+        return specs
     for k in range(runs):
         cls = classes[k % len(classes)]
         combo = k // len(classes)
@@ -146,25 +162,27 @@ def packed_start(layout: str, n_trains: int, seed: int, duration_s: float) -> Ru
     return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), "fixed_block", blocks, gap_m)
 
 
-def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float) -> tuple:
-    """The fault texts of class `cls` (as given to --faults) for a run: drawn from `seed`, the same on every machine."""
+def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids=None) -> tuple:
+    """The fault texts of class `cls` (as given to --faults) for a run: drawn from `seed`, the same on every machine;
+    a fault's train is one of `train_ids` (default T1..Tn)."""
     rng = random.Random(f"{cls}/{seed}")
+    ids = list(train_ids or [f"T{i + 1}" for i in range(n_trains)])
     if cls == NONE:
         return ()
     if cls == COMBINED:
         first, second = rng.sample(sorted(CAMPAIGN_RANGES), 2)
-        return (_draw(first, rng, n_trains, duration_s), _draw(second, rng, n_trains, duration_s))
-    return (_draw(cls, rng, n_trains, duration_s),)
+        return (_draw(first, rng, ids, duration_s), _draw(second, rng, ids, duration_s))
+    return (_draw(cls, rng, ids, duration_s),)
 
 
-def _draw(text, rng, n_trains, duration_s) -> str:
+def _draw(text, rng, ids, duration_s) -> str:
     name, _, given = text.partition(":")
     named = {item.partition("=")[0] for item in given.split(",") if item}
     fixed = {k: v for k, v in faults.parse(text).params.items() if k in named}
     defaults = faults.FAULTS[name][1]
     params = {}
     if "train" in defaults:
-        params["train"] = f"T{rng.randrange(n_trains) + 1}"
+        params["train"] = ids[rng.randrange(len(ids))]
     if "at_s" in defaults:
         low_s = min(10.0, 0.25 * duration_s)
         params["at_s"] = round(rng.uniform(low_s, max(low_s, min(30.0, duration_s - 30.0))), 1)

@@ -45,6 +45,7 @@ class ScenarioConfig:
     report_budget_hz: float = 400.0  # reports a second the zone controller is sized for (fast reports within it)
     faults: tuple = ()               # cbtc.sim.faults.Fault values injected into the simulated world
     name: str = None                 # the scenario file's name, for titles
+    source: str = None               # the scenario file or packaged name it was read from
 
 
 def train_key(seed: int, train_id: str) -> bytes:
