@@ -18,7 +18,7 @@ def _run(config):
 @pytest.mark.parametrize("n_trains", [2, 4, 6])
 def test_trains_on_a_line_all_move_and_stop_before_its_end(policy, blocks, n_trains):
     layout = load_layout("straight_test")
-    recorder, summary = _run(sim_config(layout, n_trains, seed=0, duration_s=40.0, policy=policy, blocks=blocks))
+    recorder, summary = _run(sim_config(layout, n_trains, seed=0, duration_s=25.0, policy=policy, blocks=blocks))
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0 and summary["stranded"] == 0
     assert summary["granted_beyond_m"] < 0.0   # no board held an end beyond the track's end or the train ahead
     assert all(t["distance_m"] > 0.05 for t in summary["trains"])

@@ -52,7 +52,13 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
-        importlib.import_module(f"cbtc.commands.{name}").register(sub)
+        module = importlib.import_module(f"cbtc.commands.{name}")
+        module.register(sub)
+        examples = getattr(module, "EXAMPLES", ())
+        if examples:   # each runs as written (tests/test_documented_commands.py)
+            command = sub.choices[name]
+            command.formatter_class = argparse.RawDescriptionHelpFormatter
+            command.epilog = "examples:\n" + "\n".join(f"  {line}" for line in examples)
     return parser
 
 

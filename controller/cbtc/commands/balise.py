@@ -10,6 +10,10 @@ from cbtc.errors import CbtcError
 from cbtc.layout_files import load_layout
 from cbtc.railway import balise
 
+EXAMPLES = (
+    "cbtc balise image --layout lego_oval",
+)
+
 
 def register(sub):
     p = sub.add_parser("balise", help="telegram images for balise tags, and decoding of tag data",

@@ -8,6 +8,10 @@ from cbtc.commands.common import print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments import latency
 
+EXAMPLES = (
+    "cbtc bench latency --trains 4 --duration 3 --json",
+)
+
 
 def register(sub):
     p = sub.add_parser("bench", help="measure the live system (MQTT latency, controller compute time)",

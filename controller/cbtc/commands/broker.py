@@ -12,6 +12,10 @@ from cbtc.bus.broker_config import load_credentials, write_config
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 
+EXAMPLES = (
+    "cbtc broker config --train-ids A,B --out broker",
+)
+
 
 def register(sub):
     p = sub.add_parser("broker", help="generate a Mosquitto configuration with per-train ACLs", description=__doc__)

@@ -21,6 +21,12 @@ from cbtc.sim.runs import sim_config
 MAX_RUNS = 1_000_000
 
 
+EXAMPLES = (
+    "cbtc campaign --runs 4 --duration 10 --trains 2 --results runs.jsonl",
+    "cbtc campaign --scenario paper_itb --runs 2 --duration 10 --fault link_loss --results paper-runs.jsonl",
+)
+
+
 def register(sub):
     p = sub.add_parser("campaign", help="seeded runs over fault classes, layouts and fleet sizes, judged by truth",
                        description=__doc__ + "\n" + campaign.__doc__,

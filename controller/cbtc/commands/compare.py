@@ -40,6 +40,12 @@ def _following_row(f):
     return row
 
 
+EXAMPLES = (
+    "cbtc compare --laps 1",
+    "cbtc compare --scenario lego_oval_mixed --laps 1 --json",
+)
+
+
 def register(sub):
     p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
                        description=__doc__)

@@ -8,6 +8,11 @@ from cbtc.commands.common import SCENARIO_HELP, run_scenario_and_report, with_sc
 from cbtc.layout_files import load_layout
 from cbtc.zone.config import paper_scenario
 
+EXAMPLES = (
+    "cbtc demo --laps 1 --plot demo.png",
+    "cbtc demo --scenario lego_oval_mixed --laps 1 --json",
+)
+
 
 def register(sub):
     p = sub.add_parser("demo", help="run the paper scenario: two virtual trains on the square loop (no hardware)",

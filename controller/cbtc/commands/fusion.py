@@ -17,6 +17,10 @@ from cbtc.layout_files import load_layout
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import paper_scenario
 
+EXAMPLES = (
+    "cbtc fusion --seed 1 --json",
+)
+
 
 def register(sub):
     p = sub.add_parser("fusion", help="sensor fusion RMSE table (the paper's Table 1) on the paper scenario",

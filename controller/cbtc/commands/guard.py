@@ -4,6 +4,10 @@ from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
 
+EXAMPLES = (
+    "cbtc guard --seeds 0-1 --duration 20",
+)
+
 
 def register(sub):
     p = sub.add_parser("guard", help="faulty leader: collisions without and with the onboard ranging guard",

@@ -11,6 +11,10 @@ from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 from cbtc.live.keys import new_keys
 
+EXAMPLES = (
+    "cbtc keys new --train-ids A,B --out keys.json",
+)
+
 
 def register(sub):
     p = sub.add_parser("keys", help="make per-train authentication keys", description=__doc__)

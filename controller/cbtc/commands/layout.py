@@ -7,6 +7,11 @@ from cbtc.commands.common import format_table, print_json
 from cbtc.layout_files import layout_names, load_layout
 from cbtc.railway.ips_frame import ips_to_track
 
+EXAMPLES = (
+    "cbtc layout list",
+    "cbtc layout show lego_oval --plot oval.png",
+)
+
 
 def register(sub):
     p = sub.add_parser("layout", help="show or list track layouts", description=__doc__)

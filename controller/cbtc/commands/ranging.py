@@ -5,6 +5,10 @@ from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments.ranging_tables import ranging_figures
 
+EXAMPLES = (
+    "cbtc ranging --json",
+)
+
 
 def register(sub):
     p = sub.add_parser("ranging", help="coded train-to-train ranging, BER of the data channel, telegram coding",

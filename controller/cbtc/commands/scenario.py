@@ -4,6 +4,11 @@ from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.scenario_files import resolve_scenario, scenario_names
 
+EXAMPLES = (
+    "cbtc scenario list",
+    "cbtc scenario show paper_itb",
+)
+
 
 def register(sub):
     p = sub.add_parser("scenario", help="list the shipped scenarios, or check and show a scenario file",

@@ -9,6 +9,12 @@ from cbtc.layout_files import load_layout
 from cbtc.sim import faults
 from cbtc.sim.runs import sim_config
 
+EXAMPLES = (
+    "cbtc sim --layout lego_oval --trains 4 --duration 30",
+    "cbtc sim --layout straight_test --trains 3 --duration 20 --policy fixed_block --blocks 6",
+    "cbtc sim --scenario lego_oval_mixed --duration 30 --fault ips_blackout:train=F1,at_s=10 --plot run.png",
+)
+
 
 def register(sub):
     p = sub.add_parser("sim", help="simulate N trains on a layout", description=__doc__)

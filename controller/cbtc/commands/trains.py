@@ -19,6 +19,10 @@ from cbtc.protocol import wire
 from cbtc.sim.truth import TruthMonitor
 from cbtc.sim.virtual_train import VirtualTrain
 
+EXAMPLES = (
+    "cbtc trains --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 3",
+)
+
 
 def register(sub):
     p = sub.add_parser("trains", help="run virtual trains against a real MQTT broker", description=__doc__)

@@ -19,6 +19,12 @@ from cbtc.zone.factory import build_zone
 STOP_GRACE_S = 0.5
 
 
+EXAMPLES = (
+    "cbtc zone --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 3 --status-json zone.json",
+    "cbtc zone --broker mqtt://127.0.0.1:1883 --scenario lego_oval_mixed --duration 3 --quiet",
+)
+
+
 def register(sub):
     p = sub.add_parser("zone", help="run the zone controller against a real MQTT broker", description=__doc__)
     add_connection_args(p)
