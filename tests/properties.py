@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from cbtc.errors import LayoutError
 from cbtc.firmware import telegram
-from cbtc.layout_files import _resolve
+from cbtc.layout_files import resolve_layout
 from cbtc.protocol import wire
 from cbtc.railway.layout_dict import layout_from_dict
 
@@ -188,7 +188,7 @@ def telegram_decodes_any_bits_without_surprise(bits):
 
 def layout_mutation_loads_or_names_the_problem(name, path, value):
     """A shipped layout with one value anywhere in its tree replaced: a Layout, or a LayoutError naming the file."""
-    with open(_resolve(name)) as fh:
+    with open(resolve_layout(name)) as fh:
         data = yaml.safe_load(fh)
     node = data
     for step in path[:-1]:

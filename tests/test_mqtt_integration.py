@@ -346,11 +346,11 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
                         "  - {id: F1, start: 2.5, stops: [north], dwell_s: 1}\n"
                         "faults:\n  - {name: stop_dead, train: F1, at_s: 100}\n")
     summary = str(tmp_path / "trains.json")
-    zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration", "14",
+    zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration", "9",
                                  "--quiet", "--summary-json", str(tmp_path / "zone.json")),
                             stdout=subprocess.DEVNULL, stderr=open(tmp_path / "zone.err", "w"))
     trains = subprocess.run(cbtc("trains", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration",
-                                 "12", "--quiet", "--summary-json", summary), capture_output=True, text=True,
+                                 "7", "--quiet", "--summary-json", summary), capture_output=True, text=True,
                             timeout=60)
     assert zone.wait(30) == 0, (tmp_path / "zone.err").read_text()
     assert trains.returncode == 0, trains.stderr
@@ -358,6 +358,6 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
     with open(summary) as fh:
         truth = json.load(fh)
     assert truth["collisions"] == 0 and {t["train"] for t in truth["trains"]} == {"P1", "F1"}
-    assert all(t["distance_m"] > 1.0 and within_authority(t) for t in truth["trains"]), truth
+    assert all(t["distance_m"] > 0.5 and within_authority(t) for t in truth["trains"]), truth
     with open(tmp_path / "zone.json") as fh:
         assert json.load(fh)["trains"]["F1"]["station_stops"] >= 1

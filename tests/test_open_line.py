@@ -18,7 +18,7 @@ def _run(config):
 @pytest.mark.parametrize("n_trains", [2, 4, 6])
 def test_trains_on_a_line_all_move_and_stop_before_its_end(policy, blocks, n_trains):
     layout = load_layout("straight_test")
-    recorder, summary = _run(sim_config(layout, n_trains, seed=0, duration_s=25.0, policy=policy, blocks=blocks))
+    recorder, summary = _run(sim_config(layout, n_trains, seed=0, duration_s=20.0, policy=policy, blocks=blocks))
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0 and summary["stranded"] == 0
     assert summary["granted_beyond_m"] < 0.0   # no board held an end beyond the track's end or the train ahead
     assert all(t["distance_m"] > 0.05 for t in summary["trains"])
@@ -42,6 +42,6 @@ def test_trains_on_a_line_stop_at_each_station_ahead_once():
 @pytest.mark.parametrize("name", layout_names())
 def test_every_shipped_layout_runs_two_and_six_trains_safely(name):
     for n_trains in (2, 6):
-        _recorder, summary = _run(sim_config(name, n_trains, seed=1, duration_s=25.0))
+        _recorder, summary = _run(sim_config(name, n_trains, seed=1, duration_s=15.0))
         assert summary["collisions"] == 0 and summary["authority_overruns"] == 0, (name, n_trains)
         assert all(t["distance_m"] > 0.05 for t in summary["trains"]), (name, n_trains)

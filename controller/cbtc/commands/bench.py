@@ -9,7 +9,7 @@ from cbtc.errors import ConfigError
 from cbtc.experiments import latency
 
 EXAMPLES = (
-    "cbtc bench latency --trains 4 --duration 3 --json",
+    "cbtc bench latency --trains 4 --duration 2 --warmup 0.5 --json",
 )
 
 

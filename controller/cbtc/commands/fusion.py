@@ -18,7 +18,7 @@ from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import paper_scenario
 
 EXAMPLES = (
-    "cbtc fusion --seed 1 --json",
+    "cbtc fusion --seed 1 --laps 2 --json",
 )
 
 
