@@ -79,3 +79,40 @@ def test_calibrate_command_on_recorded_files(tmp_path, capsys):
     bad.write_text("{not json\n")
     assert cli_main(["calibrate", "tags", "--reports", str(bad)]) == 2
     assert "bad.jsonl line 1" in capsys.readouterr().err
+
+
+def test_a_recorded_simulated_run_calibrates_the_encoder_within_half_a_percent(tmp_path, capsys):
+    """`cbtc sim --record` writes what `cbtc calibrate encoder` reads: one train runs the 3 m line from standing to
+    standing; the board's wheel reads 2 % long (encoder_scale_error); the truth gives the distance."""
+    from cbtc.commands.common import ReportRecording
+    from cbtc.sim.runs import sim_config
+    from cbtc.sim.simulation import Simulation
+
+    path = str(tmp_path / "run.jsonl")
+    config = sim_config("straight_test", 1, seed=4, duration_s=20.0)
+    sim = Simulation(config)
+    recording = ReportRecording(path)
+    sim.record_reports(recording)
+    recorder = sim.run()
+    recording.close()
+    true_m = recorder.travelled_m[0][-1]
+    assert true_m > 2.0 and recorder.v_mps[0][-1] == 0.0
+    assert cli_main(["calibrate", "encoder", "--reports", path, "--distance-m", f"{true_m:.4f}"]) == 0
+    out = capsys.readouterr().out
+    value = float(out.rsplit("counts_per_m = ", 1)[1])
+    scale = 1000.0 * (1.0 + config.trains[0].profile.encoder_scale_error)
+    assert abs(value - scale) / scale < 0.005, out
+
+
+def test_calibration_refuses_too_little_data_and_an_unchosen_train(tmp_path, capsys):
+    one = tmp_path / "one.jsonl"
+    one.write_text('{"id": "A", "boot": 1, "odo_mm": 0, "tags": []}\n')
+    assert cli_main(["calibrate", "encoder", "--reports", str(one), "--distance-m", "3"]) == 2
+    assert "1 reports with 0.000 m of odometer" in capsys.readouterr().err
+    two = tmp_path / "two.jsonl"
+    two.write_text('{"id": "A", "boot": 1, "odo_mm": 0, "tags": []}\n{"id": "B", "boot": 1, "odo_mm": 900, '
+                   '"tags": []}\n')
+    assert cli_main(["calibrate", "encoder", "--reports", str(two), "--distance-m", "3"]) == 2
+    assert "choose one with --train" in capsys.readouterr().err
+    assert cli_main(["calibrate", "encoder", "--reports", str(two), "--distance-m", "3", "--train", "C"]) == 2
+    assert "no reports of train C" in capsys.readouterr().err

@@ -347,7 +347,8 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
                         "faults:\n  - {name: stop_dead, train: F1, at_s: 100}\n")
     summary = str(tmp_path / "trains.json")
     zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration", "9",
-                                 "--quiet", "--summary-json", str(tmp_path / "zone.json")),
+                                 "--quiet", "--summary-json", str(tmp_path / "zone.json"), "--record",
+                                 str(tmp_path / "run.jsonl")),
                             stdout=subprocess.DEVNULL, stderr=open(tmp_path / "zone.err", "w"))
     trains = subprocess.run(cbtc("trains", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration",
                                  "7", "--quiet", "--summary-json", summary), capture_output=True, text=True,
@@ -361,3 +362,6 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
     assert all(t["distance_m"] > 0.5 and within_authority(t) for t in truth["trains"]), truth
     with open(tmp_path / "zone.json") as fh:
         assert json.load(fh)["trains"]["F1"]["station_stops"] >= 1
+    with open(tmp_path / "run.jsonl") as fh:   # every accepted report, as cbtc calibrate reads them
+        recorded = [json.loads(line) for line in fh]
+    assert {r["id"] for r in recorded} == {"P1", "F1"} and all("odo_mm" in r for r in recorded)

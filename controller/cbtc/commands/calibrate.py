@@ -22,6 +22,8 @@ def register(subparsers):
                      help="distance the train really travelled (m)")
     enc.add_argument("--counts-per-m", type=arg_types.number(above=0.0, example="1000"), default=1000.0,
                      help="the counts_per_m the board used during the run (default 1000)")
+    enc.add_argument("--train", default=None, metavar="ID", help="the train whose reports to use (a recording of "
+                                                                 "several trains needs it)")
     enc.set_defaults(func=_encoder)
     ips = sub.add_parser("ips", help="IPS frame (origin, rotation) from points measured in both frames")
     ips.add_argument("--points", type=arg_types.input_file, required=True,
@@ -34,10 +36,32 @@ def register(subparsers):
                       help="track position of the head at the first report (m)")
     tags.add_argument("--loop-m", type=arg_types.number(above=0.0, example="6.8"), default=None,
                       help="loop length (m) for a closed layout")
+    tags.add_argument("--train", default=None, metavar="ID", help="the train whose reports to use (a recording of "
+                                                                  "several trains needs it)")
     tags.set_defaults(func=_tags)
 
 
-def _reports(path):
+MIN_RUN_M = 0.5   # an encoder calibration needs at least this much odometer travel: a count is 1 mm
+
+
+def _reports(path, train=None):
+    """The reports of `path` (of `train` only when given; a recording of several trains needs it)."""
+    reports = _all_reports(path)
+    ids = sorted({str(r["id"]) for r in reports if "id" in r})
+    if train is not None:
+        reports = [r for r in reports if str(r.get("id")) == train]
+        if not reports:
+            raise ConfigError(f"{path}: no reports of train {train}; the trains recorded are {ids}")
+    elif len(ids) > 1:
+        raise ConfigError(f"{path} holds the reports of trains {ids}: choose one with --train")
+    boots = {r.get("boot") for r in reports}
+    if len(boots) > 1:
+        raise ConfigError(f"{path}: the board restarted during the run (boots {sorted(map(str, boots))}), so its "
+                          f"odometer began again: record a run without a restart")
+    return reports
+
+
+def _all_reports(path):
     reports = []
     try:
         with open(path) as fh:
@@ -62,8 +86,12 @@ def _reports(path):
 
 
 def _encoder(args):
-    reports = _reports(args.reports)
+    reports = _reports(args.reports, args.train)
     travelled_m = (reports[-1]["odo_mm"] - reports[0]["odo_mm"]) / 1000.0
+    if len(reports) < 2 or travelled_m < MIN_RUN_M:
+        raise ConfigError(f"{args.reports}: {len(reports)} reports with {travelled_m:.3f} m of odometer between the "
+                          f"first and the last; record a run of at least {MIN_RUN_M} m (a few metres is best), from "
+                          f"standing to standing, and measure how far the train really went")
     counts = travelled_m * args.counts_per_m
     value = counts_per_m([counts], [args.distance_m])
     # the board counts whole counts per metre (its odometer stays an integer): the nearest is within 0.05 % of a
@@ -93,7 +121,7 @@ def _ips(args):
 
 
 def _tags(args):
-    survey = survey_tags(_reports(args.reports), args.start_s_m, loop_m=args.loop_m)
+    survey = survey_tags(_reports(args.reports, args.train), args.start_s_m, loop_m=args.loop_m)
     print("tags:")
     print(tags_yaml(survey), end="")
     return 0

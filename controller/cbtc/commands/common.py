@@ -42,7 +42,15 @@ def run_scenario_and_report(config, title, args) -> int:
     from cbtc.sim.simulation import Simulation
 
     started = time.perf_counter()
-    recorder = Simulation(config).run()
+    sim = Simulation(config)
+    recording = ReportRecording(args.record) if getattr(args, "record", None) else None
+    if recording is not None:
+        sim.record_reports(recording)
+    try:
+        recorder = sim.run()
+    finally:
+        if recording is not None:
+            recording.close()
     wall_s = time.perf_counter() - started
     summary = recorder.summary()
     if args.plot:
@@ -63,6 +71,8 @@ def run_scenario_and_report(config, title, args) -> int:
                   f"(fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
         if args.plot:
             print(f"distance-time plot: {args.plot}")
+        if recording is not None:
+            print(f"{recording.lines} reports recorded in {args.record} (cbtc calibrate reads them)")
     return 1 if violations(summary) else 0
 
 
@@ -160,3 +170,21 @@ def with_scenario(args, defaults: dict, fixed=(), overrides=None):
         if getattr(args, name, None) is None:
             setattr(args, name, value)
     return config
+
+
+class ReportRecording:
+    """Every report a zone accepts, as JSON lines ({"id", "recv_s", and the report's fields}: what `cbtc calibrate`
+    reads), flushed a line at a time so a kill loses at most the line being written."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.lines = 0
+        self._fh = open(path, "w", encoding="utf-8")   # noqa: SIM115 -- closed by close()
+
+    def __call__(self, train_id, report, recv_s):
+        self._fh.write(json.dumps({"id": train_id, "recv_s": round(recv_s, 4), **report}, sort_keys=True) + "\n")
+        self._fh.flush()
+        self.lines += 1
+
+    def close(self):
+        self._fh.close()

@@ -39,6 +39,8 @@ def register(sub):
                    help="inject a fault into the simulated world (repeatable); names: "
                         + ", ".join(f"{name} ({', '.join(f'{k}={v}' for k, v in params.items())})"
                                     for name, (_what, params) in sorted(faults.FAULTS.items())))
+    p.add_argument("--record", type=arg_types.output_file, default=None, metavar="FILE",
+                   help="write every report the zone accepts as a JSON line (what cbtc calibrate reads)")
     p.add_argument("--json", action="store_true")
     p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="", help="write a distance-time plot")
     p.set_defaults(func=run)

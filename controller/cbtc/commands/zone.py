@@ -10,7 +10,14 @@ import sys
 
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands import arg_types
-from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, fmt, write_json
+from cbtc.commands.common import (
+    ReportRecording,
+    add_connection_args,
+    add_fleet_args,
+    fleet_from_args,
+    fmt,
+    write_json,
+)
 from cbtc.live.keys import credentials
 from cbtc.live.loop import LiveLoop
 from cbtc.protocol import wire
@@ -43,6 +50,8 @@ def register(sub):
                         "cbtc bench latency); followed trains are asked for 50 Hz reports within it")
     p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
                    help="the controller's figures, rewritten at every status period and at exit")
+    p.add_argument("--record", type=arg_types.output_file, default=None, metavar="FILE",
+                   help="write every accepted report as a JSON line (what cbtc calibrate reads)")
     p.add_argument("--status-json", type=arg_types.output_file, default=None, metavar="FILE",
                    help="every train's position, speed, end of authority, data age, stale flag and faults, rewritten "
                         "(atomically) at every status period")
@@ -61,6 +70,9 @@ def run(args):
                   username=username, password=password, inbox=loop.inbox).start()
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
+    recording = None
+    if args.record:
+        recording = zc.report_sink = ReportRecording(args.record)
     zc.start()
     cycle = loop.scheduler.call_every(config.cycle_s, zc.cycle, start_s=loop.now_s() + 0.05)
     loop.scheduler.call_every(args.status_period, lambda now_s: _status(zc, bus, loop, args, now_s),
@@ -78,6 +90,9 @@ def run(args):
     loop.pause(STOP_GRACE_S)
     bus.disconnect()
     summary = _summary(zc, bus, loop)
+    if recording is not None:
+        recording.close()
+        print(f"zone {args.zone_id}: {recording.lines} reports recorded in {args.record}", flush=True)
     if args.summary_json:
         write_json(args.summary_json, summary)
     print(f"zone {args.zone_id}: stopped every train and went offline after {summary['cycles']} cycles", flush=True)

@@ -58,6 +58,7 @@ class Simulation:
         self._cycle = self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
         self._keys = keys
         self.zone_restarts = 0
+        self.report_sink = None   # callable(train_id, report, recv_s): every report the zone accepts (a recording)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
         faults.inject(self, config.faults)
 
@@ -74,6 +75,7 @@ class Simulation:
         self.zc = build_zone(self.config, self._keys, self.zc_client, self.scheduler.now_s,
                              seed=self.config.seed + 1000 * self.zone_restarts)
         self.policy = self.zc.policy
+        self.zc.report_sink = self.report_sink
         self.zc.start()
         self._cycle = self.scheduler.call_every(self.config.cycle_s, self.zc.cycle)
 
@@ -109,6 +111,10 @@ class Simulation:
     @staticmethod
     def _ticker(train):
         return train.tick
+
+    def record_reports(self, sink) -> None:
+        """Hand every report the zone accepts (this one and any that replaces it) to `sink`."""
+        self.report_sink = self.zc.report_sink = sink
 
     def run(self):
         config = self.config

@@ -144,6 +144,7 @@ class ZoneController:
         self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.ranging.transponder.RangingSensor.sigma_m)
         self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
         self.on_command = None        # callable(state, now_s) after each command is published (supervision, tests)
+        self.report_sink = None       # callable(train_id, report, recv_s) for each accepted report (a recording)
         # Reports a second this controller is sized for (measured with `cbtc bench latency`: 20 trains at 20 Hz on
         # two shared cores, its own compute p99 under 2.5 ms a report; 1000 a second saturated it). Every train
         # reports at the board's own rate; what is left pays for fast reports, each fast train costing the difference.
@@ -239,10 +240,21 @@ class ZoneController:
         state.report = report
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+        if self.report_sink is not None:
+            self._record(state, report, recv_s)
         if report.get("rng") is not None:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
             self._answer(state, recv_s)
+
+    def _record(self, state, report, recv_s):
+        """Hand an accepted report to `report_sink` (a recording); a sink that fails is dropped, the zone goes on."""
+        try:
+            self.report_sink(state.train_id, report, recv_s)
+        except Exception as exc:
+            log.error("recording reports failed (%s: %s): recording stopped, the zone goes on", type(exc).__name__,
+                      exc)
+            self.report_sink = None
 
     @staticmethod
     def _filter_healthy(state):
