@@ -72,6 +72,21 @@ def test_flash_with_credentials_logs_the_board_in_to_a_secured_broker(board, sec
         zc.close()
 
 
+def test_flash_takes_the_key_from_the_keys_file_and_a_user_and_password(board, secured_mosquitto, tmp_path):
+    """The same keys file the zone controller reads gives the board its key; --username/--password log it in."""
+    broker, creds = secured_mosquitto(["A"])
+    keys = tmp_path / "keys.json"
+    keys.write_text(json.dumps({"A": KEY.hex(), "B": "00" * 16}))
+    zc = Controller(broker.port, login=("zc", creds["zc"]))
+    try:
+        assert cli_main(["flash", "--port", board.port, "--train", "A", "--broker", "mqtt://127.0.0.1:%d" % broker.port,
+                         "--keys", str(keys), "--username", "train-A", "--password", creds["train-A"]]) == 0
+        report = zc.wait(lambda r: True, 10, "a report sealed with the key from the keys file")
+        assert report["id"] == "A"
+    finally:
+        zc.close()
+
+
 def test_flash_errors_name_the_port(board, tmp_path):
     with pytest.raises(BoardError, match="/dev/nonexistent-port.*does not exist"):
         flash("/dev/nonexistent-port", "A", KEY.hex(), "mqtt://127.0.0.1")

@@ -4,6 +4,7 @@ import os
 
 from cbtc.board.flash import flash
 from cbtc.commands import arg_types
+from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, credentials, train_keys
 
 
 def register(subparsers):
@@ -19,9 +20,13 @@ def register(subparsers):
     p.add_argument("--key", default=os.environ.get("CBTC_TRAIN_KEY"),
                    help="the train's 16-byte key as 32 hex digits (default: $CBTC_TRAIN_KEY); the zone controller "
                         "must hold the same key")
+    p.add_argument("--keys", type=arg_types.input_file, default=None, metavar="FILE",
+                   help="keys file from `cbtc keys new`: the train's key is taken from it (instead of --key)")
     p.add_argument("--credentials", type=arg_types.input_file, default=None, metavar="FILE",
                    help="the broker's credentials.json (cbtc broker config): the board logs in as train-<id> with its "
-                        "password (default: anonymous, for an open broker)")
+                        "password (default: --username/--password, else anonymous, for an open broker)")
+    p.add_argument("--username", default=None, help=f"broker user name of the board (default: ${ENV_USERNAME})")
+    p.add_argument("--password", default=None, help=f"broker password of the board (default: ${ENV_PASSWORD})")
     p.add_argument("--timeout", type=arg_types.seconds, default=120.0, help="seconds allowed for copying (default 120)")
     p.set_defaults(func=run)
 
@@ -29,9 +34,16 @@ def register(subparsers):
 def run(args):
     from cbtc.errors import ConfigError
 
+    if args.keys is not None:   # the file the zone controller reads: the board gets the very same key
+        key = train_keys([args.train], args.keys)[args.train]
+        args.key = key.hex() if isinstance(key, bytes) else key
     if not args.key:
-        raise ConfigError("--key is required (or set CBTC_TRAIN_KEY): 32 hex digits, the train's key")
+        raise ConfigError("--key is required (or --keys FILE, or set CBTC_TRAIN_KEY): 32 hex digits, the train's "
+                          "key")
     login = None
+    username, password = credentials(f"train-{args.train}", args.username, args.password)
+    if username:
+        login = {"mqtt_user": username, "mqtt_password": password or ""}
     if args.credentials is not None:
         from cbtc.bus.broker_config import load_credentials
 
