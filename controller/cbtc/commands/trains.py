@@ -33,7 +33,7 @@ def register(sub):
     p.add_argument("--duration", type=arg_types.seconds, default=None,
                    help="stop after this many seconds (default: until Ctrl-C)")
     p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
-                   help="write the truth-based figures at exit")
+                   help="the truth-based figures, rewritten at every status period and at exit")
     p.add_argument("--status-json", type=arg_types.output_file, default=None, metavar="FILE",
                    help="rewrite the truth-based figures into FILE at every status period")
     p.set_defaults(func=run)
@@ -83,6 +83,8 @@ def _status(monitor, args, now_s):
     summary = monitor.summary(now_s)
     if args.status_json:
         write_json(args.status_json, summary)
+    if args.summary_json:   # kept current, so a killed run leaves its figures
+        write_json(args.summary_json, summary)
     if args.quiet:
         return
     parts = [f"{t['train']} s={t['head_s_m']:.2f} v={t['v_mps']:.2f} {t['mode']} rej={t['commands_rejected_onboard']} "
