@@ -13,24 +13,34 @@ from cbtc.railway.layout import Layout
 from cbtc.railway.layout_dict import layout_from_dict
 
 
-def layout_names():
-    """Names of the layouts shipped with the package (without `.yaml`)."""
-    folder = resources.files("cbtc.track_layouts")
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+def packaged_names(package: str):
+    """Names of the YAML files shipped in `package` (without `.yaml`)."""
+    return sorted(p.name[:-5] for p in resources.files(package).iterdir() if p.name.endswith(".yaml"))
 
 
-def resolve_layout(path_or_name):
-    """A readable file path for a file path or a packaged layout name."""
+def resolve_packaged(path_or_name, package: str, what: str, error=LayoutError) -> str:
+    """A readable file path for a file path or the name of a YAML file shipped in `package`; `error` naming the
+    packaged ones otherwise."""
     text = str(path_or_name)
     if os.path.isfile(text):
         return text
     bare = text[:-5] if text.endswith(".yaml") else text
     if "/" not in bare and os.sep not in bare:
-        packaged = resources.files("cbtc.track_layouts") / f"{bare}.yaml"
+        packaged = resources.files(package) / f"{bare}.yaml"
         if packaged.is_file():
             return str(packaged)
-    raise LayoutError(f"layout {text!r} not found: give a YAML file path or one of the packaged layouts "
-                      f"{layout_names()}")
+    raise error(f"{what} {text!r} not found: give a YAML file path or one of the packaged {what}s "
+                f"{packaged_names(package)}")
+
+
+def layout_names():
+    """Names of the layouts shipped with the package (without `.yaml`)."""
+    return packaged_names("cbtc.track_layouts")
+
+
+def resolve_layout(path_or_name) -> str:
+    """A readable file path for a layout file path or a packaged layout name."""
+    return resolve_packaged(path_or_name, "cbtc.track_layouts", "layout")
 
 
 def load_layout(path_or_name) -> Layout:

@@ -6,12 +6,11 @@ import difflib
 import math
 import os
 from dataclasses import fields, replace
-from importlib import resources
 
 import yaml
 
 from cbtc.errors import CbtcError, ConfigError
-from cbtc.layout_files import load_layout
+from cbtc.layout_files import load_layout, packaged_names, resolve_packaged
 from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim import faults as fault_catalogue
@@ -77,22 +76,12 @@ _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _sequen
 
 def scenario_names():
     """Names of the scenarios shipped with the package (without `.yaml`)."""
-    folder = resources.files("cbtc.scenarios")
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+    return packaged_names("cbtc.scenarios")
 
 
 def resolve_scenario(path_or_name) -> str:
     """A readable file path for a scenario file path or a packaged scenario name."""
-    text = str(path_or_name)
-    if os.path.isfile(text):
-        return text
-    bare = text[:-5] if text.endswith(".yaml") else text
-    if "/" not in bare and os.sep not in bare:
-        packaged = resources.files("cbtc.scenarios") / f"{bare}.yaml"
-        if packaged.is_file():
-            return str(packaged)
-    raise ConfigError(f"scenario {text!r} not found: give a YAML file path or one of the packaged scenarios "
-                      f"{scenario_names()}")
+    return resolve_packaged(path_or_name, "cbtc.scenarios", "scenario", ConfigError)
 
 
 def load_scenario(path_or_name) -> ScenarioConfig:

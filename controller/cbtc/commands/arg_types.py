@@ -67,11 +67,7 @@ train_count.__name__ = "train count"
 def train_ids(text):
     """Train ids 'A,B' -> ['A', 'B']: each a valid id, none twice."""
     from cbtc.bus.broker_config import checked_train_ids
-    from cbtc.errors import ConfigError
-    try:
-        return checked_train_ids([t.strip() for t in text.split(",") if t.strip()], repr(text))
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(f"{exc}; give ids such as A,B") from None
+    return _checked(lambda t: checked_train_ids([i.strip() for i in t.split(",") if i.strip()], repr(t)), text)
 
 
 train_ids.__name__ = "train ids"
@@ -156,36 +152,33 @@ def input_file(text):
     return text
 
 
+def _checked(check, text):
+    """`check(text)`'s value, its CbtcError turned into the parser's one-line refusal."""
+    from cbtc.errors import CbtcError
+    try:
+        return check(text)
+    except CbtcError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def layout(text):
     """A layout: a packaged name or a YAML file (its contents are checked when it is loaded)."""
-    from cbtc.errors import LayoutError
     from cbtc.layout_files import resolve_layout
-    try:
-        resolve_layout(text)
-    except LayoutError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    _checked(resolve_layout, text)
     return text
 
 
 def broker_url(text):
     """mqtt://HOST:PORT (user and password may be in it)."""
     from cbtc.bus.paho_bus import parse_broker_url
-    from cbtc.errors import ConfigError
-    try:
-        parse_broker_url(text)
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    _checked(parse_broker_url, text)
     return text
 
 
 def scenario(text):
     """A scenario file or packaged name, read and checked now: its ScenarioConfig."""
-    from cbtc.errors import ConfigError
     from cbtc.scenario_files import load_scenario
-    try:
-        return load_scenario(text)
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    return _checked(load_scenario, text)
 
 
 scenario.__name__ = "scenario"

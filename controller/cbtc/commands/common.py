@@ -153,6 +153,16 @@ def fleet_from_args(args, seed: int = 0):
 SCENARIO_HELP = "a scenario file or packaged name (cbtc scenario list): layout, trains, stops, seed, duration, faults"
 
 
+def add_paper_or_scenario_args(p) -> None:
+    """--scenario FILE, or the paper scenario on --layout; --laps: what compare and demo run."""
+    p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE",
+                   help=SCENARIO_HELP + " (default: the paper's two trains)")
+    p.add_argument("--layout", type=arg_types.layout, default=None,
+                   help="layout file or packaged name for the paper scenario (default: itb_square)")
+    p.add_argument("--laps", type=arg_types.whole(1), default=None,
+                   help="laps each train completes (default: 5, or the scenario's)")
+
+
 def with_scenario(args, defaults: dict, fixed=(), overrides=None):
     """With `args.scenario` (a ScenarioConfig): refuse the flags in `fixed` (the file sets them) and return the
     scenario with the flags given of `overrides` ({args attribute: config field}) put over it; else None. Then fill

@@ -5,7 +5,7 @@ from dataclasses import replace
 
 from cbtc.authority.speed_code_channel import SpeedCodeChannel
 from cbtc.commands import arg_types
-from cbtc.commands.common import SCENARIO_HELP, format_table, print_json, with_scenario
+from cbtc.commands.common import add_paper_or_scenario_args, format_table, print_json, with_scenario
 from cbtc.errors import ConfigError
 from cbtc.experiments.headway import (
     PAPER,
@@ -49,12 +49,7 @@ EXAMPLES = (
 def register(sub):
     p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
                        description=__doc__)
-    p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE",
-                   help=SCENARIO_HELP + " (default: the paper's two trains)")
-    p.add_argument("--layout", type=arg_types.layout, default=None,
-                   help="layout file or packaged name for the paper scenario (default: itb_square)")
-    p.add_argument("--laps", type=arg_types.whole(1), default=None,
-                   help="laps each train completes (default: 5, or the scenario's)")
+    add_paper_or_scenario_args(p)
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",
                    help="also run the steady-following experiment with every report at these periods (ms), e.g. "

@@ -4,7 +4,7 @@ broker."""
 from dataclasses import replace
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import SCENARIO_HELP, run_scenario_and_report, with_scenario
+from cbtc.commands.common import add_paper_or_scenario_args, run_scenario_and_report, with_scenario
 from cbtc.layout_files import load_layout
 from cbtc.zone.config import paper_scenario
 
@@ -18,12 +18,7 @@ def register(sub):
     p = sub.add_parser("demo", help="run the paper scenario: two virtual trains on the square loop (no hardware)",
                        description="Two virtual LEGO trains run laps of the paper's square loop under the zone "
                                    "controller, on the in-process mock broker under a virtual clock.")
-    p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE",
-                   help=SCENARIO_HELP + " (default: the paper's two trains)")
-    p.add_argument("--layout", type=arg_types.layout, default=None,
-                   help="layout file or packaged name for the paper scenario (default: itb_square)")
-    p.add_argument("--laps", type=arg_types.whole(1), default=None,
-                   help="laps each train completes (default: 5, or the scenario's)")
+    add_paper_or_scenario_args(p)
     p.add_argument("--seed", type=arg_types.seed, default=None,
                    help="random seed; the same seed gives the same result (default: 0, or the scenario's)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
