@@ -99,3 +99,10 @@ def test_sim_refuses_a_bad_scenario_in_one_line_and_flags_the_file_sets(capsys, 
     assert f"argument --scenario: {path}:2: sead: unknown key" in err and err.count("\n") == 1, err
     assert main(["sim", "--scenario", "paper_itb", "--trains", "3"]) == 2
     assert "--trains: the scenario paper_itb sets it" in capsys.readouterr().err
+
+
+def test_a_fixed_block_scenario_whose_trains_cannot_move_is_refused_at_its_line(tmp_path):
+    text = "layout: lego_oval\npolicy: fixed_block\nblocks: 3\ntrains:\n" + "".join(
+        f"  - {{id: T{k}, start: {0.8 * k}}}\n" for k in range(4))
+    with pytest.raises(ConfigError, match=r":3: policy: fixed block: 4 trains on the 3 blocks"):
+        load_scenario(write(tmp_path, text))

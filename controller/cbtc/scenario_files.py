@@ -15,6 +15,7 @@ from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim import faults as fault_catalogue
 from cbtc.zone.config import ScenarioConfig, TrainSpec
+from cbtc.zone.factory import make_policy
 
 TOP_KEYS = ("name", "description", "layout", "seed", "duration_s", "laps", "policy", "blocks", "estimator", "dwell_s",
             "trains", "faults")
@@ -202,9 +203,15 @@ def scenario_from_dict(data, source="<dict>") -> ScenarioConfig:
     dwell_s = r.dwell(data, "dwell_s", "dwell_s", (1.0, 3.0))
     trains = _trains(r, data, layout)
     injected = _faults(r, data, [spec.train_id for spec in trains])
-    return ScenarioConfig(layout=layout, trains=trains, seed=seed, duration_s=duration_s, laps=laps, policy=policy,
-                          estimator=estimator, dwell_s=dwell_s, policy_options=options, faults=injected,
-                          name=str(data.get("name") or os.path.basename(source)[:-5]))
+    config = ScenarioConfig(layout=layout, trains=trains, seed=seed, duration_s=duration_s, laps=laps, policy=policy,
+                            estimator=estimator, dwell_s=dwell_s, policy_options=options, faults=injected,
+                            name=str(data.get("name") or os.path.basename(source)[:-5]))
+    if policy == "fixed_block":   # blocks the trains can move in (more than the trains on a loop)
+        try:
+            make_policy(config)
+        except ConfigError as exc:
+            r.fail(data, "blocks" if "blocks" in data else "policy", "policy", str(exc))
+    return config
 
 
 def _trains(r, data, layout):
