@@ -109,3 +109,12 @@ def test_trains_and_train_ids_must_agree(capsys):
     argv = ["zone", "--broker", "mqtt://127.0.0.1:1", "--layout", "itb_square", "--trains", "3", "--train-ids", "A,B"]
     assert main(argv) == 2
     assert "--trains 3 and --train-ids A,B disagree" in capsys.readouterr().err
+
+
+def test_the_command_line_and_every_help_import_nothing_heavy():
+    """`cbtc --help` (and any `cbtc X --help`) builds every command's parser: none of them may import numpy, scipy,
+    filterpy, matplotlib, paho or yaml to do it (the run functions import what they need)."""
+    code = ("import sys\nfrom cbtc.cli import build_parser\nbuild_parser()\n"
+            "print(sorted(m for m in ('numpy', 'scipy', 'filterpy', 'matplotlib', 'paho', 'yaml') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr

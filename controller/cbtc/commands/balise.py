@@ -7,8 +7,6 @@
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import CbtcError
-from cbtc.layout_files import load_layout
-from cbtc.railway import balise
 
 EXAMPLES = (
     "cbtc balise image --layout lego_oval",
@@ -31,6 +29,9 @@ def register(sub):
 
 
 def run_image(args):
+    from cbtc.layout_files import load_layout
+    from cbtc.railway import balise
+
     layout = load_layout(args.layout)
     rows = []
     for i, tag in enumerate(layout.tags):
@@ -46,6 +47,8 @@ def run_image(args):
 
 
 def run_read(args):
+    from cbtc.railway import balise
+
     try:
         tag_id, s_m, status = balise.read(args.data.replace(" ", ""))
     except ValueError as exc:

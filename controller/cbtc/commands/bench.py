@@ -4,9 +4,8 @@
 import argparse
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import print_json
+from cbtc.commands.common import module_doc, print_json
 from cbtc.errors import ConfigError
-from cbtc.experiments import latency
 
 EXAMPLES = (
     "cbtc bench latency --trains 4 --duration 2 --warmup 0.5 --json",
@@ -15,11 +14,13 @@ EXAMPLES = (
 
 def register(sub):
     p = sub.add_parser("bench", help="measure the live system (MQTT latency, controller compute time)",
-                       description=latency.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       description=module_doc("cbtc.experiments.latency"),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     bench_sub = p.add_subparsers(dest="bench_command", metavar="WHAT")
     bench_sub.required = True
     lat = bench_sub.add_parser("latency", help="report -> command round trip through the broker",
-                               description=latency.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                               description=module_doc("cbtc.experiments.latency"),
+                               formatter_class=argparse.RawDescriptionHelpFormatter)
     lat.add_argument("--broker", default="embedded", metavar="URL",
                      help="mqtt://HOST:PORT of an open broker, or 'embedded' (default): a private Mosquitto")
     lat.add_argument("--trains", type=arg_types.whole(1), default=20, help="number of virtual trains (default 20)")
@@ -40,6 +41,7 @@ def register(sub):
 def run_latency(args):
     if args.trains < 1 or args.train_procs < 1 or args.duration <= 0 or args.warmup < 0:
         raise ConfigError("bench latency: --trains and --train-procs must be >= 1, --duration > 0, --warmup >= 0")
+    from cbtc.experiments import latency
     result = latency.run_latency(args)
     if args.json:
         print_json(result)

@@ -8,7 +8,6 @@ read only its own commands.
 
 import os
 
-from cbtc.bus.broker_config import load_credentials, write_config
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 
@@ -43,6 +42,8 @@ def register(sub):
 
 
 def run_config(args):
+    from cbtc.bus.broker_config import load_credentials, write_config
+
     ids = args.train_ids
     old = os.path.join(args.out, "credentials.json")
     if os.path.exists(old) and not (args.keep_passwords or args.force):

@@ -6,7 +6,6 @@ Reports are JSON lines, one decoded report per line (fields as in docs/protocol.
 import csv
 import json
 
-from cbtc.board.calibration import align_ips, counts_per_m, survey_tags, tags_yaml
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 
@@ -86,6 +85,8 @@ def _all_reports(path):
 
 
 def _encoder(args):
+    from cbtc.board.calibration import counts_per_m
+
     reports = _reports(args.reports, args.train)
     travelled_m = (reports[-1]["odo_mm"] - reports[0]["odo_mm"]) / 1000.0
     if len(reports) < 2 or travelled_m < MIN_RUN_M:
@@ -102,6 +103,8 @@ def _encoder(args):
 
 
 def _ips(args):
+    from cbtc.board.calibration import align_ips
+
     ips, track = [], []
     try:
         with open(args.points, newline="") as fh:
@@ -121,6 +124,8 @@ def _ips(args):
 
 
 def _tags(args):
+    from cbtc.board.calibration import survey_tags, tags_yaml
+
     survey = survey_tags(_reports(args.reports, args.train), args.start_s_m, loop_m=args.loop_m)
     print("tags:")
     print(tags_yaml(survey), end="")

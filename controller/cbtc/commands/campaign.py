@@ -16,7 +16,6 @@ from cbtc.commands import arg_types
 from cbtc.commands.common import SCENARIO_HELP, format_table, print_json
 from cbtc.errors import ConfigError
 from cbtc.experiments import campaign
-from cbtc.sim.runs import sim_config
 
 MAX_RUNS = 1_000_000
 
@@ -90,6 +89,7 @@ def checked_plan(args):
     if not layouts:
         raise ConfigError(f"--layouts {args.layouts!r}: give layout names, such as itb_square,lego_oval")
     sizes = fleet_sizes(args.trains)
+    from cbtc.sim.runs import sim_config
     for layout in layouts:
         for n in sizes:
             sim_config(layout, n, 0, args.duration)       # the layout loads and the fleet fits on it

@@ -7,9 +7,16 @@ from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
-from cbtc.layout_files import load_layout
 from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, train_keys
 from cbtc.zone.config import fleet_config
+
+
+def module_doc(name: str) -> str:
+    """The docstring of module `name`, read from its source without importing it (so `--help` stays light)."""
+    import ast
+    import importlib.util
+    with open(importlib.util.find_spec(name).origin, encoding="utf-8") as fh:
+        return ast.get_docstring(ast.parse(fh.read())) or ""
 
 
 def print_json(data) -> None:
@@ -128,6 +135,7 @@ def fleet_from_args(args, seed: int = 0):
         for flag, value in (("--trains", args.trains), ("--train-ids", args.train_ids)):
             if value is not None:
                 raise ConfigError(f"{flag}: the scenario {config.name} sets the trains; leave {flag} out or edit it")
+        from cbtc.layout_files import load_layout
         if args.layout is not None and load_layout(args.layout).source != config.layout.source:
             raise ConfigError(f"--layout {args.layout}: the scenario {config.name} runs on {config.layout.name}; "
                               f"leave --layout out or give that one")
@@ -139,6 +147,7 @@ def fleet_from_args(args, seed: int = 0):
     if args.layout is None:
         raise ConfigError("--layout: give the layout (a file or a packaged name such as itb_square), or a "
                           "--scenario FILE that names it")
+    from cbtc.layout_files import load_layout
     layout = load_layout(args.layout)
     ids = args.train_ids
     if ids and args.trains is not None and args.trains != len(ids):

@@ -3,20 +3,9 @@ scenario file."""
 
 from dataclasses import replace
 
-from cbtc.authority.speed_code_channel import SpeedCodeChannel
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_paper_or_scenario_args, format_table, print_json, with_scenario
 from cbtc.errors import ConfigError
-from cbtc.experiments.headway import (
-    PAPER,
-    block_sweep,
-    check_block_counts,
-    reductions,
-    run_systems,
-    steady_following,
-)
-from cbtc.experiments.plots import distance_time_png
-from cbtc.layout_files import load_layout
 from cbtc.zone.config import paper_scenario
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
@@ -85,6 +74,18 @@ def _number_list(text, option, kind, low, high, what, example):
 
 def run(args):
     # every setting is checked before the first (long) run
+    from cbtc.authority.speed_code_channel import SpeedCodeChannel
+    from cbtc.experiments.headway import (
+        PAPER,
+        block_sweep,
+        check_block_counts,
+        reductions,
+        run_systems,
+        steady_following,
+    )
+    from cbtc.experiments.plots import distance_time_png
+    from cbtc.layout_files import load_layout
+
     report_periods = _number_list(args.report_ms, "--report-ms", int, 1, 10000, "a whole number >= 1", "100,20")
     speeds = _number_list(args.follow_mps, "--follow-mps", float, 0.05, 0.55, "a speed in [0.05, 0.55] m/s",
                           "0.3,0.5")

@@ -5,7 +5,6 @@ from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_paper_or_scenario_args, run_scenario_and_report, with_scenario
-from cbtc.layout_files import load_layout
 from cbtc.zone.config import paper_scenario
 
 EXAMPLES = (
@@ -30,6 +29,8 @@ def register(sub):
 
 
 def run(args):
+    from cbtc.layout_files import load_layout
+
     config = with_scenario(args, {"layout": "itb_square", "seed": 0, "estimator": "ukf"}, fixed=("layout",),
                            overrides={"seed": "seed", "estimator": "estimator"})
     if config is not None:

@@ -2,7 +2,6 @@
 
 import os
 
-from cbtc.board.flash import flash
 from cbtc.commands import arg_types
 from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, credentials, train_keys
 
@@ -32,6 +31,7 @@ def register(subparsers):
 
 
 def run(args):
+    from cbtc.board.flash import flash
     from cbtc.errors import ConfigError
 
     if args.keys is not None:   # the file the zone controller reads: the board gets the very same key

@@ -6,15 +6,6 @@ import time
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
-from cbtc.experiments.fusion_plot import fusion_png
-from cbtc.experiments.fusion_table import (
-    METHODS,
-    fusion_table,
-    paper_ordering_holds,
-    records_from_recorder,
-)
-from cbtc.layout_files import load_layout
-from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import paper_scenario
 
 EXAMPLES = (
@@ -42,6 +33,11 @@ def register(sub):
 
 
 def run(args):
+    from cbtc.experiments.fusion_plot import fusion_png
+    from cbtc.experiments.fusion_table import fusion_table, paper_ordering_holds, records_from_recorder
+    from cbtc.layout_files import load_layout
+    from cbtc.sim.simulation import Simulation
+
     if args.laps < 1:
         raise ConfigError(f"--laps must be >= 1, got {args.laps}")
     layout = load_layout(args.layout)
@@ -84,6 +80,8 @@ def _columns(train_ids):
 
 
 def _table_rows(rows, train_ids):
+    from cbtc.experiments.fusion_table import METHODS
+
     out = []
     labels = {key: label for key, label, _x, _y in METHODS}
     for row in rows:

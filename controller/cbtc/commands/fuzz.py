@@ -9,18 +9,16 @@ import argparse
 import logging
 import sys
 
-from cbtc.bus.paho_bus import parse_broker_url
 from cbtc.commands import arg_types
-from cbtc.commands.common import print_json
+from cbtc.commands.common import module_doc, print_json
 from cbtc.errors import ConfigError
-from cbtc.experiments import fuzz
 
 MAX_PAYLOADS = 1_000_000
 
 
 def register(sub):
     p = sub.add_parser("fuzz", help="throw bad payloads at a live zone and trains over Mosquitto, check nothing got "
-                                    "through", description=__doc__ + "\n" + fuzz.__doc__,
+                                    "through", description=__doc__ + "\n" + module_doc("cbtc.experiments.fuzz"),
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--broker", type=arg_types.broker_url, default=None, metavar="URL",
                    help="mqtt://HOST:PORT of an open broker (default: a private Mosquitto on a free loopback port)")
@@ -36,10 +34,10 @@ def run(args):
         raise ConfigError(f"--payloads {args.payloads}: give 1 to {MAX_PAYLOADS}")
     if args.seed < 0:
         raise ConfigError(f"--seed {args.seed}: give a whole number >= 0")
-    if args.broker is not None:
-        parse_broker_url(args.broker)   # a bad URL is named before anything starts
     # refusals are counted in the figures; the zone's own lines (a few per kind) would tear the progress bar
     logging.getLogger("cbtc.zone").setLevel(logging.ERROR)
+    from cbtc.experiments import fuzz
+
     show = not args.json and sys.stderr.isatty()
     if show:
         from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn

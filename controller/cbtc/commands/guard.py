@@ -2,7 +2,6 @@
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
-from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
 
 EXAMPLES = (
     "cbtc guard --seeds 0-1 --duration 20",
@@ -25,6 +24,8 @@ def register(sub):
 
 
 def run(args):
+    from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
+
     result = guard_comparison(args.seeds, args.layout, args.duration)
     off_runs = sum(1 for case in result["off"] if case["collisions"] > 0)
     on_total = sum(case["collisions"] for case in result["on"])

@@ -1,11 +1,8 @@
 """`cbtc layout show|list`: what a layout holds, and a drawing of it."""
 
-import numpy as np
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
-from cbtc.layout_files import layout_names, load_layout
-from cbtc.railway.ips_frame import ips_to_track
 
 EXAMPLES = (
     "cbtc layout list",
@@ -29,6 +26,8 @@ def register(sub):
 
 def describe(layout) -> dict:
     """A layout as plain data: lengths and positions in metres, rounded to 0.1 mm."""
+    import numpy as np
+
     tag_xy = layout.xy(np.array([t.s_m for t in layout.tags])) if layout.tags else np.zeros((0, 2))
     return {
         "name": layout.name, "source": layout.source, "closed": layout.closed, "length_m": round(layout.length_m, 4),
@@ -48,6 +47,8 @@ def _block_length_m(layout, block):
 
 
 def run_show(args):
+    from cbtc.layout_files import load_layout
+
     layout = load_layout(args.layout)
     info = describe(layout)
     if args.plot:
@@ -73,6 +74,8 @@ def run_show(args):
 
 
 def run_list(args):
+    from cbtc.layout_files import layout_names, load_layout
+
     rows = []
     for name in layout_names():
         layout = load_layout(name)
@@ -87,6 +90,9 @@ def run_list(args):
 def draw_png(layout, path):
     """Draw the track centre line, stations, tags, block boundaries and IPS beacons to a PNG; returns `path`."""
     import matplotlib
+    import numpy as np
+
+    from cbtc.railway.ips_frame import ips_to_track
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -3,7 +3,6 @@
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
 from cbtc.errors import ConfigError
-from cbtc.experiments.ranging_tables import ranging_figures
 
 EXAMPLES = (
     "cbtc ranging --json",
@@ -26,6 +25,8 @@ def register(sub):
 
 
 def run(args):
+    from cbtc.experiments.ranging_tables import ranging_figures
+
     if args.trials < 20:
         raise ConfigError(f"--trials must be >= 20, got {args.trials}")
     if args.chip_rate <= 0:

@@ -2,7 +2,6 @@
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
-from cbtc.scenario_files import resolve_scenario, scenario_names
 
 EXAMPLES = (
     "cbtc scenario list",
@@ -55,6 +54,8 @@ def run_show(args):
 
 
 def run_list(_args):
+    from cbtc.scenario_files import resolve_scenario, scenario_names
+
     for name in scenario_names():
         with open(resolve_scenario(name), encoding="utf-8") as fh:
             first = fh.readline().lstrip("# ").strip()

@@ -5,9 +5,7 @@ from dataclasses import replace
 from cbtc.commands import arg_types
 from cbtc.commands.common import SCENARIO_HELP, run_scenario_and_report, with_scenario
 from cbtc.errors import ConfigError
-from cbtc.layout_files import load_layout
 from cbtc.sim import faults
-from cbtc.sim.runs import sim_config
 
 EXAMPLES = (
     "cbtc sim --layout lego_oval --trains 4 --duration 30",
@@ -51,6 +49,9 @@ DEFAULTS = {"layout": "lego_oval", "trains": 3, "duration": 120.0, "seed": 0, "p
 
 
 def run(args):
+    from cbtc.layout_files import load_layout
+    from cbtc.sim.runs import sim_config
+
     config = with_scenario(args, DEFAULTS, fixed=("layout", "trains", "start_gap"),
                            overrides={"seed": "seed", "duration": "duration_s", "policy": "policy",
                                       "estimator": "estimator"})

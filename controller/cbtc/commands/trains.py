@@ -7,17 +7,10 @@ the end (Ctrl-C or --duration) the truth-based figures (distance, collisions, re
 as JSON.
 """
 
-import numpy as np
 
-from cbtc.bus.broker_config import train_user
-from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, write_json
 from cbtc.live.keys import credentials
-from cbtc.live.loop import LiveLoop
-from cbtc.protocol import wire
-from cbtc.sim.truth import TruthMonitor
-from cbtc.sim.virtual_train import VirtualTrain
 
 EXAMPLES = (
     "cbtc trains --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 3",
@@ -40,6 +33,15 @@ def register(sub):
 
 
 def run(args):
+    import numpy as np
+
+    from cbtc.bus.broker_config import train_user
+    from cbtc.bus.paho_bus import PahoBus
+    from cbtc.live.loop import LiveLoop
+    from cbtc.protocol import wire
+    from cbtc.sim.truth import TruthMonitor
+    from cbtc.sim.virtual_train import VirtualTrain
+
     config, keys = fleet_from_args(args, seed=args.seed)
     layout = config.layout
     loop = LiveLoop()

@@ -8,7 +8,6 @@ braking distance), then, half a second later, the controller publishes its retai
 import secrets
 import sys
 
-from cbtc.bus.paho_bus import PahoBus
 from cbtc.commands import arg_types
 from cbtc.commands.common import (
     ReportRecording,
@@ -19,9 +18,6 @@ from cbtc.commands.common import (
     write_json,
 )
 from cbtc.live.keys import credentials
-from cbtc.live.loop import LiveLoop
-from cbtc.protocol import wire
-from cbtc.zone.factory import build_zone
 
 STOP_GRACE_S = 0.5
 
@@ -59,6 +55,11 @@ def register(sub):
 
 
 def run(args):
+    from cbtc.bus.paho_bus import PahoBus
+    from cbtc.live.loop import LiveLoop
+    from cbtc.protocol import wire
+    from cbtc.zone.factory import build_zone
+
     seed = secrets.randbits(31) if args.seed is None else args.seed
     config, keys = fleet_from_args(args)
     layout = config.layout

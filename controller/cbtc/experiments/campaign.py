@@ -21,7 +21,6 @@ from dataclasses import asdict, dataclass, replace
 
 from cbtc.errors import ConfigError
 from cbtc.sim import faults
-from cbtc.sim.recorder import violations
 
 NONE, COMBINED, PACKED = "none", "combined", "packed_start"
 CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED, PACKED)
@@ -199,6 +198,7 @@ def _draw(text, rng, ids, duration_s) -> str:
 
 def run_one(spec: RunSpec) -> dict:
     """Make one run and return its record: the spec, the summary figures, the violations, the wall time."""
+    from cbtc.sim.recorder import violations
     from cbtc.sim.simulation import Simulation
 
     logger = logging.getLogger("cbtc")
