@@ -1,19 +1,23 @@
-"""`cbtc bench latency`: report -> command round trips through a real MQTT broker, and the controller's compute time
-(experiments/latency.py says what each figure measures)."""
+"""`cbtc bench latency|sim|fusion|startup`: report -> command round trips through a real MQTT broker and the
+controller's compute time (experiments/latency.py says what each figure measures); simulation speed, the filter's
+update time and start-up, each beside its reference (experiments/speed.py)."""
 
 import argparse
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import module_doc, print_json
+from cbtc.commands.common import format_table, module_doc, print_json
 from cbtc.errors import ConfigError
 
 EXAMPLES = (
     "cbtc bench latency --trains 4 --duration 2 --warmup 0.5 --json",
+    "cbtc bench sim --layout lego_oval --trains 4 --duration 10",
+    "cbtc bench fusion --trains 5 --steps 10",
+    "cbtc bench startup --runs 1",
 )
 
 
 def register(sub):
-    p = sub.add_parser("bench", help="measure the live system (MQTT latency, controller compute time)",
+    p = sub.add_parser("bench", help="measure latency, simulation speed, fusion and start-up, each beside a reference",
                        description=module_doc("cbtc.experiments.latency"),
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     bench_sub = p.add_subparsers(dest="bench_command", metavar="WHAT")
@@ -36,6 +40,31 @@ def register(sub):
     lat.add_argument("--seed", type=arg_types.seed, default=0)
     lat.add_argument("--json", action="store_true", help="print the figures as JSON")
     lat.set_defaults(func=run_latency)
+    sim = bench_sub.add_parser("sim", help="simulated seconds per wall second, beside a do-nothing controller",
+                               description=module_doc("cbtc.experiments.speed"),
+                               formatter_class=argparse.RawDescriptionHelpFormatter)
+    sim.add_argument("--layout", type=arg_types.layout, default=None,
+                     help="one layout (with --trains); default: the paper's 2 trains on itb_square, 11 on lego_oval, "
+                          "50 on lego_long_oval")
+    sim.add_argument("--trains", type=arg_types.train_count, default=None, help="trains on --layout")
+    sim.add_argument("--duration", type=arg_types.seconds, default=30.0, help="simulated seconds a case (default 30)")
+    sim.add_argument("--seed", type=arg_types.seed, default=0)
+    sim.add_argument("--json", action="store_true", help="print the figures as JSON")
+    sim.set_defaults(func=run_sim)
+    fusion = bench_sub.add_parser("fusion", help="our filter's train-update beside filterpy's, on the same inputs",
+                                  description=module_doc("cbtc.experiments.speed"),
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    fusion.add_argument("--trains", type=arg_types.train_count, default=50, help="filters (default 50)")
+    fusion.add_argument("--steps", type=arg_types.whole(1), default=40, help="updates each (default 40)")
+    fusion.add_argument("--seed", type=arg_types.seed, default=0)
+    fusion.add_argument("--json", action="store_true", help="print the figures as JSON")
+    fusion.set_defaults(func=run_fusion)
+    start = bench_sub.add_parser("startup", help="wall time and memory of commands that do little, beside python",
+                                 description=module_doc("cbtc.experiments.speed"),
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")
+    start.add_argument("--json", action="store_true", help="print the figures as JSON")
+    start.set_defaults(func=run_startup)
 
 
 def run_latency(args):
@@ -47,6 +76,55 @@ def run_latency(args):
         print_json(result)
     else:
         _print(result)
+    return 0
+
+
+def _machine() -> dict:
+    import os
+    import platform
+    return {"cores": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()}
+
+
+def run_sim(args):
+    from cbtc.experiments import speed
+    if (args.layout is None) != (args.trains is None):
+        raise ConfigError("bench sim: give --layout and --trains together, or neither (the three standard cases)")
+    cases = speed.SIM_CASES if args.layout is None else ((args.layout, args.trains),)
+    rows = [speed.sim_speed(layout, n, args.duration, args.seed) for layout, n in cases]
+    if args.json:
+        print_json({"machine": _machine(), "sim": rows})
+        return 0
+    print(f"simulation speed ({_machine()['cores']} cores): simulated seconds per wall second, the full run beside the "
+          f"same world with a do-nothing controller")
+    print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("simulated_s", "simulated s"),
+                              ("wall_s", "wall s"), ("real_time_factor", "x real time"),
+                              ("reference_real_time_factor", "x, no controller"),
+                              ("controller_share", "controller share"), ("collisions", "collisions"),
+                              ("authority_overruns", "overruns"), ("emergency_trips", "trips")]))
+    return 0
+
+
+def run_fusion(args):
+    from cbtc.experiments import speed
+    row = speed.fusion_speed(args.trains, args.steps, args.seed)
+    if args.json:
+        print_json({"machine": _machine(), "fusion": row})
+        return 0
+    print(f"fusion, {row['trains']} filters x {row['steps']} updates (predict 50 ms, odometer, IPS fix): ours "
+          f"{row['ours_us']} us a train-update, filterpy {row['filterpy_us']} us: {row['speedup']}x; largest "
+          f"difference {row['max_state_difference']:.1e} (state), {row['max_covariance_difference']:.1e} (covariance)")
+    return 0
+
+
+def run_startup(args):
+    from cbtc.experiments import speed
+    rows = speed.startup(args.runs)
+    if args.json:
+        print_json({"machine": _machine(), "startup": rows})
+        return 0
+    print(f"start-up, median of {args.runs} runs each, peak resident memory:")
+    print(format_table(rows, [("command", "command"), ("wall_s", "wall s"), ("resident_mib", "resident MiB"),
+                              ("vs_python", "x python -c pass")]))
     return 0
 
 

@@ -1,0 +1,162 @@
+"""How fast the testbed runs, each figure beside its reference measured in the same run.
+
+- **sim**: simulated seconds per wall second for a fleet, and the same world with a controller that does nothing
+  (its reports unanswered, no cycle: the trains stand) as the reference for the simulation's own overhead; the
+  controller's share is what the full run costs beyond it.
+- **fusion**: wall time of one train-update (predict 50 ms, odometer, IPS fix) of our filter and of filterpy's
+  UnscentedKalmanFilter on the same inputs, over a fleet, with the largest difference between the two.
+- **startup**: wall time and peak resident memory of commands that do little (`cbtc --help`, a command's `--help`)
+  beside `python -c pass`.
+"""
+
+import subprocess
+import sys
+import time
+from dataclasses import replace
+
+SIM_CASES = (("itb_square", 2), ("lego_oval", 11), ("lego_long_oval", 50))
+
+
+def sim_speed(layout_name: str, n_trains: int, duration_s: float, seed: int = 0) -> dict:
+    """Real-time factor of `n_trains` on `layout_name` for `duration_s` simulated seconds (the paper's scenario for
+    two trains on a layout with its stations), and of the same world under a do-nothing controller."""
+    from cbtc.layout_files import load_layout
+    from cbtc.protocol import wire
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import paper_scenario, queue_scenario
+
+    layout = load_layout(layout_name)
+    names = {st.name for st in layout.stations}
+    if n_trains == 2 and {"main", "A", "B"} <= names:
+        config = paper_scenario(layout, seed=seed, laps=None, duration_s=duration_s)
+    else:
+        config = queue_scenario(layout, n_trains, seed=seed, duration_s=duration_s)
+    config = replace(config, laps=None)
+
+    full = Simulation(config)   # built outside the timing: its first build imports the filter's modules
+    started = time.perf_counter()
+    summary = full.run().summary()
+    full_s = time.perf_counter() - started
+
+    idle = Simulation(config)
+    idle.zc_client.unsubscribe(wire.REPORT_FILTER)   # the controller hears nothing and runs no cycle
+    idle._cycle.cancel()
+    started = time.perf_counter()
+    idle.run()
+    idle_s = time.perf_counter() - started
+    simulated_s = summary["simulated_s"]
+    return {"layout": layout.name, "trains": n_trains, "simulated_s": simulated_s, "wall_s": round(full_s, 3),
+            "real_time_factor": round(simulated_s / full_s, 2),
+            "reference_wall_s": round(idle_s, 3), "reference_real_time_factor": round(simulated_s / idle_s, 2),
+            "controller_share": round(1.0 - idle_s / full_s, 3),
+            "collisions": summary["collisions"], "authority_overruns": summary["authority_overruns"],
+            "emergency_trips": summary["emergency_trips"]}
+
+
+def fusion_speed(n_trains: int = 50, steps: int = 40, seed: int = 0) -> dict:
+    """Wall time (us) of a train-update, ours and filterpy's, over `n_trains` filters for `steps` steps each."""
+    import numpy as np
+    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+    from cbtc.estimation.track_ukf import (
+        _ALPHA,
+        _BETA,
+        _KAPPA,
+        NoiseModel,
+        TrackUkf,
+        fx,
+        hx_ips,
+        hx_odometer,
+        process_noise,
+    )
+    from cbtc.layout_files import load_layout
+
+    layout = load_layout("lego_long_oval")
+    rng = np.random.default_rng(seed)
+    noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.05, 0.999)
+    dt_s = 0.05
+    starts = [(np.array([rng.uniform(0.5, layout.length_m - 0.5), 0.4, 0.0, 0.01]),
+               np.diag([1e-4, 1e-3, 1e-6, 1e-4])) for _ in range(n_trains)]
+    inputs = [[(0.4 * dt_s * (k + 1) * 1.01 + rng.normal(0, 0.001), rng.normal(0, 0.02, 2)) for k in range(steps)]
+              for _ in range(n_trains)]
+
+    ours = [TrackUkf(layout, noise, x0, P0, 0.0) for x0, P0 in starts]
+    used = []   # which fixes our gate let in: the reference takes the same ones
+    started = time.perf_counter()
+    for f, (x0, _P0), seq in zip(ours, starts, inputs):
+        taken = []
+        for k, (odo_m, ips_noise) in enumerate(seq):
+            f.predict_to(dt_s * (k + 1))
+            f.update_odometer(odo_m)
+            px, py = layout.xy(x0[0] + 0.4 * dt_s * (k + 1))
+            taken.append(f.update_ips(px + ips_noise[0], py + ips_noise[1]))
+        used.append(taken)
+    ours_s = time.perf_counter() - started
+
+    refs = []
+    started = time.perf_counter()
+    for (x0, P0), seq, taken in zip(starts, inputs, used):
+        ref = UnscentedKalmanFilter(dim_x=4, dim_z=1, dt=dt_s, hx=hx_odometer, fx=fx,
+                                    points=MerweScaledSigmaPoints(4, _ALPHA, _BETA, _KAPPA))
+        ref.x, ref.P = x0.copy(), P0.copy()
+        for k, (odo_m, ips_noise) in enumerate(seq):
+            ref.Q = process_noise(4, dt_s, ref.x[1], ref.x[3], noise)
+            ref.predict(dt=dt_s)
+            ref.P = 0.5 * (ref.P + ref.P.T)
+            ref.sigmas_f = ref.points_fn.sigma_points(ref.x, ref.P)
+            ref.update(np.array([odo_m]), R=np.array([[noise.odo_var_m2]]), hx=hx_odometer)
+            px, py = layout.xy(x0[0] + 0.4 * dt_s * (k + 1))
+            ref.P = 0.5 * (ref.P + ref.P.T)
+            ref.x[0] = layout.wrap(ref.x[0])
+            if not taken[k]:
+                continue
+            ref.sigmas_f = ref.points_fn.sigma_points(ref.x, ref.P)
+            ref.update(np.array([px + ips_noise[0], py + ips_noise[1]]), R=np.eye(2) * noise.ips_var_m2,
+                       hx=hx_ips, layout=layout)
+        refs.append(ref)
+    ref_s = time.perf_counter() - started
+    updates = n_trains * steps
+    diff_x = max(float(np.max(np.abs(f.x - r.x))) for f, r in zip(ours, refs))
+    diff_p = max(float(np.max(np.abs(f.P - r.P))) for f, r in zip(ours, refs))
+    return {"trains": n_trains, "steps": steps, "ours_us": round(1e6 * ours_s / updates, 1),
+            "filterpy_us": round(1e6 * ref_s / updates, 1), "speedup": round(ref_s / ours_s, 2),
+            "max_state_difference": diff_x, "max_covariance_difference": diff_p}
+
+
+STARTUP_COMMANDS = (("python -c pass", [sys.executable, "-c", "pass"]),
+                    ("cbtc --help", [sys.executable, "-m", "cbtc.cli", "--help"]),
+                    ("cbtc sim --help", [sys.executable, "-m", "cbtc.cli", "sim", "--help"]),
+                    ("cbtc zone --help", [sys.executable, "-m", "cbtc.cli", "zone", "--help"]))
+
+
+# a small launcher starts each command, so that the child's peak resident memory is its own and not this process's
+# (a forked child counts its parent's pages until it runs the command)
+_LAUNCHER = ("import resource, subprocess, sys, time\n"
+             "t = time.perf_counter()\n"
+             "subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)\n"
+             "print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+
+
+def _one_run(argv):
+    """(wall s, peak resident MiB) of one process."""
+    out = subprocess.run([sys.executable, "-c", _LAUNCHER, *argv], capture_output=True, text=True, check=True)
+    wall_s, rss_kib = out.stdout.split()
+    return float(wall_s), int(rss_kib) / 1024.0
+
+
+def startup(runs: int = 5) -> list:
+    """Median wall time and peak resident memory of each of STARTUP_COMMANDS over `runs` runs, taken in turn, and
+    the ratio of each to `python -c pass`."""
+    import statistics
+    samples = {name: [] for name, _argv in STARTUP_COMMANDS}
+    for _ in range(runs):
+        for name, argv in STARTUP_COMMANDS:
+            samples[name].append(_one_run(argv))
+    base_s = statistics.median(w for w, _m in samples["python -c pass"])
+    rows = []
+    for name, _argv in STARTUP_COMMANDS:
+        wall_s = statistics.median(w for w, _m in samples[name])
+        rows.append({"command": name, "wall_s": round(wall_s, 3), "resident_mib": round(max(m for _w, m in
+                                                                                           samples[name]), 1),
+                     "vs_python": round(wall_s / base_s, 2)})
+    return rows
