@@ -91,6 +91,8 @@ class TrainState:
         self.measurements_dropped = 0  # fixes, tags and ranges stamped outside their report
         self.failures = 0            # exceptions in this train's handling: located afresh
         self.failures_said = set()   # the exception types already logged for it
+        self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
+        self.position_memo = None    # (estimator, reports_taken, report_t_s, s_m): the head position last worked out
 
     @property
     def train_id(self):
@@ -240,6 +242,7 @@ class ZoneController:
         state.report = report
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+        state.reports_taken += 1
         if self.report_sink is not None:
             self._record(state, report, recv_s)
         if report.get("rng") is not None:
@@ -303,10 +306,16 @@ class ZoneController:
     def _position_m(self, state):
         """The train's head position (m) at its newest report, or None; a filter that fails or turns non-finite
         makes its train be located afresh."""
+        memo = state.position_memo
+        if memo is not None and memo[0] is state.estimator and memo[1] == state.reports_taken \
+                and memo[2] == state.report_t_s:
+            return memo[3]   # no report since: the same estimator gives the same position (every report asks)
         try:
             est = state.estimator.estimate(state.report_t_s)
             if est is None or (math.isfinite(est.s_m) and math.isfinite(est.sigma_s_m)):
-                return None if est is None else est.s_m
+                s_m = None if est is None else est.s_m
+                state.position_memo = (state.estimator, state.reports_taken, state.report_t_s, s_m)
+                return s_m
             raise ValueError("non-finite estimate")
         except Exception as exc:
             self._train_failed(state, exc, "estimating its position", b"", self.now_fn())
@@ -550,8 +559,9 @@ class ZoneController:
         wanting = [st for st in self.trains.values() if now_s < st.fast_until_s]
         if len(wanting) <= self.fast_slots:
             return True
-        wanting.sort(key=lambda st: (st.fast_need_m, st.train_id))
-        return state in wanting[:self.fast_slots]
+        # its place among them, least authority left first (ties by id): one pass, no sort per command
+        key = (state.fast_need_m, state.train_id)
+        return sum(1 for st in wanting if (st.fast_need_m, st.train_id) < key) < self.fast_slots
 
     def stop_all(self, now_s: float) -> None:
         """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
