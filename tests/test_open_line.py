@@ -42,6 +42,6 @@ def test_trains_on_a_line_stop_at_each_station_ahead_once():
 @pytest.mark.parametrize("name", layout_names())
 def test_every_shipped_layout_runs_two_and_six_trains_safely(name):
     for n_trains in (2, 6):
-        _recorder, summary = _run(sim_config(name, n_trains, seed=1, duration_s=15.0))
+        _recorder, summary = _run(sim_config(name, n_trains, seed=1, duration_s=12.0))
         assert summary["collisions"] == 0 and summary["authority_overruns"] == 0, (name, n_trains)
         assert all(t["distance_m"] > 0.05 for t in summary["trains"]), (name, n_trains)

@@ -88,7 +88,7 @@ def test_a_layout_beside_the_scenario_file_is_found(tmp_path):
 
 @pytest.mark.parametrize("name", scenario_names())
 def test_every_shipped_scenario_runs_safely(capsys, name):
-    assert main(["sim", "--scenario", name, "--duration", "20", "--json"]) == 0
+    assert main(["sim", "--scenario", name, "--duration", "10", "--json"]) == 0
     assert '"collisions": 0' in capsys.readouterr().out
 
 

@@ -13,7 +13,7 @@ from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from
 from cbtc.live.keys import credentials
 
 EXAMPLES = (
-    "cbtc trains --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 3",
+    "cbtc trains --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 2",
 )
 
 

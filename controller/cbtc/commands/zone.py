@@ -23,8 +23,8 @@ STOP_GRACE_S = 0.5
 
 
 EXAMPLES = (
-    "cbtc zone --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 3 --status-json zone.json",
-    "cbtc zone --broker mqtt://127.0.0.1:1883 --scenario lego_oval_mixed --duration 3 --quiet",
+    "cbtc zone --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 2 --status-json zone.json",
+    "cbtc zone --broker mqtt://127.0.0.1:1883 --scenario lego_oval_mixed --duration 2 --quiet",
 )
 
 
