@@ -24,8 +24,9 @@ STRANDED_S = 20.0
 class Recorder:
     """Truth, reports and authority limits of a run, and the figures computed from them."""
 
-    def __init__(self, sim):
+    def __init__(self, sim, keep_reports: bool = False):
         self.sim = sim
+        self.keep_reports = keep_reports   # every report heard, for the fusion table (memory grows with the run)
         self.layout = sim.config.layout
         n = len(sim.trains)
         self.t_s = []
@@ -49,7 +50,8 @@ class Recorder:
         self._reports = [[] for _ in range(n)]    # (recv_s, report dict) of those decoded so far
         self._index = {t.train_id: i for i, t in enumerate(sim.trains)}
         self._sniffer = sim.broker.connect("recorder")
-        self._sniffer.subscribe(wire.REPORT_FILTER, self._on_report)
+        if keep_reports:
+            self._sniffer.subscribe(wire.REPORT_FILTER, self._on_report)
 
     def _on_report(self, topic, payload):
         try:
@@ -61,6 +63,8 @@ class Recorder:
     @property
     def reports(self):
         """Per train, (recv_s, report dict) of every authentic report heard, in arrival order."""
+        if not self.keep_reports:
+            raise ValueError("this run kept no reports: build it with Simulation(config, keep_reports=True)")
         for i, heard in enumerate(self._heard):
             key = train_key(self.sim.config.seed, self.sim.trains[i].train_id)
             for recv_s, topic, payload in heard:
