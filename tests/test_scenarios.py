@@ -129,7 +129,8 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
     layout = load_layout("itb_square")
     fast, slow = TrainProfile(), TrainProfile().with_changes(v_max_mps=0.3)
     sim = Simulation(ScenarioConfig(layout=layout, seed=3, duration_s=30.0,
-                                    trains=[TrainSpec("A", layout.wrap(3.0), (), slow), TrainSpec("B", 0.0, (), fast)]))
+                                    trains=[TrainSpec("A", layout.wrap(3.0), (), slow), TrainSpec("B", 0.0, (), fast)]),
+                     keep_reports=True)
 
     def period_ms(train_index, t0_s, t1_s):
         """Mean report period (board clock) of the reports received between t0_s and t1_s."""
