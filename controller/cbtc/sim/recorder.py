@@ -9,6 +9,7 @@ stranded when it stood still over the run's last STRANDED_S with more than its f
 """
 
 import math
+from array import array
 
 import numpy as np
 
@@ -29,15 +30,16 @@ class Recorder:
         self.keep_reports = keep_reports   # every report heard, for the fusion table (memory grows with the run)
         self.layout = sim.config.layout
         n = len(sim.trains)
-        self.t_s = []
-        self.travelled_m = [[] for _ in range(n)]
-        self.head_s_m = [[] for _ in range(n)]
-        self.v_mps = [[] for _ in range(n)]
-        self.gap_m = [[] for _ in range(n)]       # true gap to the train ahead (head to its tail)
-        self.est_s_m = [[] for _ in range(n)]
-        self.est_sigma_m = [[] for _ in range(n)]
-        self.constrained = [[] for _ in range(n)]  # the train ahead limits this train's speed now
-        self.following_gap_m = [[] for _ in range(n)]  # true gap at the samples where it is so limited
+        # samples as packed machine numbers (8 bytes a float, 1 a flag), not lists of Python objects
+        self.t_s = array("d")
+        self.travelled_m = [array("d") for _ in range(n)]
+        self.head_s_m = [array("d") for _ in range(n)]
+        self.v_mps = [array("d") for _ in range(n)]
+        self.gap_m = [array("d") for _ in range(n)]       # true gap to the train ahead (head to its tail)
+        self.est_s_m = [array("d") for _ in range(n)]
+        self.est_sigma_m = [array("d") for _ in range(n)]
+        self.constrained = [array("b") for _ in range(n)]  # 1: the train ahead limits this train's speed now
+        self.following_gap_m = [array("d") for _ in range(n)]  # true gap at the samples where it is so limited
         self.collisions = [0] * n
         self.overruns = [0] * n
         self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or span
