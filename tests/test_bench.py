@@ -34,3 +34,9 @@ def test_bench_startup_measures_each_command_beside_python(capsys):
 def test_bench_sim_wants_layout_and_trains_together(capsys):
     assert main(["bench", "sim", "--layout", "lego_oval"]) == 2
     assert "--layout and --trains together" in capsys.readouterr().err
+
+
+def test_bench_controller_replays_a_run_into_a_zone_that_answers(capsys):
+    row = bench(capsys, ["controller", "--trains", "3", "--duration", "5"])["controller"][0]
+    assert row["trains"] == 3 and row["reports"] > 200 and row["commands"] > row["reports"] / 2
+    assert row["zone_us_per_report"] > row["decode_us_per_report"] > 0

@@ -1,4 +1,4 @@
-"""`cbtc bench latency|sim|fusion|startup`: report -> command round trips through a real MQTT broker and the
+"""`cbtc bench latency|sim|fusion|controller|startup`: report -> command round trips through a real MQTT broker and the
 controller's compute time (experiments/latency.py says what each figure measures); simulation speed, the filter's
 update time and start-up, each beside its reference (experiments/speed.py)."""
 
@@ -12,6 +12,7 @@ EXAMPLES = (
     "cbtc bench latency --trains 4 --duration 2 --warmup 0.5 --json",
     "cbtc bench sim --layout lego_oval --trains 4 --duration 10",
     "cbtc bench fusion --trains 5 --steps 10",
+    "cbtc bench controller --trains 4 --duration 5",
     "cbtc bench startup --runs 1",
 )
 
@@ -59,6 +60,16 @@ def register(sub):
     fusion.add_argument("--seed", type=arg_types.seed, default=0)
     fusion.add_argument("--json", action="store_true", help="print the figures as JSON")
     fusion.set_defaults(func=run_fusion)
+    ctl = bench_sub.add_parser("controller", help="a zone's time per report, beside decoding the reports alone",
+                               description=module_doc("cbtc.experiments.speed"),
+                               formatter_class=argparse.RawDescriptionHelpFormatter)
+    ctl.add_argument("--trains", type=arg_types.train_count, default=None,
+                     help="trains (default: 11 and 50); up to 11 on lego_oval, more on lego_long_oval")
+    ctl.add_argument("--duration", type=arg_types.seconds, default=10.0,
+                     help="simulated seconds of reports replayed (default 10)")
+    ctl.add_argument("--seed", type=arg_types.seed, default=0)
+    ctl.add_argument("--json", action="store_true", help="print the figures as JSON")
+    ctl.set_defaults(func=run_controller)
     start = bench_sub.add_parser("startup", help="wall time and memory of commands that do little, beside python",
                                  description=module_doc("cbtc.experiments.speed"),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -113,6 +124,19 @@ def run_fusion(args):
     print(f"fusion, {row['trains']} filters x {row['steps']} updates (predict 50 ms, odometer, IPS fix): ours "
           f"{row['ours_us']} us a train-update, filterpy {row['filterpy_us']} us: {row['speedup']}x; largest "
           f"difference {row['max_state_difference']:.1e} (state), {row['max_covariance_difference']:.1e} (covariance)")
+    return 0
+
+
+def run_controller(args):
+    from cbtc.experiments import speed
+    rows = [speed.controller_speed(n, args.duration, args.seed) for n in ((args.trains,) if args.trains else (11, 50))]
+    if args.json:
+        print_json({"machine": _machine(), "controller": rows})
+        return 0
+    print("zone controller, replaying a simulated run's reports (its cycles included), beside decoding them alone:")
+    print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("reports", "reports"),
+                              ("commands", "commands"), ("zone_us_per_report", "zone us/report"),
+                              ("decode_us_per_report", "decode us/report"), ("zone_over_decode", "ratio")]))
     return 0
 
 

@@ -5,6 +5,8 @@
   controller's share is what the full run costs beyond it.
 - **fusion**: wall time of one train-update (predict 50 ms, odometer, IPS fix) of our filter and of filterpy's
   UnscentedKalmanFilter on the same inputs, over a fleet, with the largest difference between the two.
+- **controller**: wall time a zone takes per report (its cycles included), replaying a simulated run's reports, beside
+  the same reports only decoded and authenticated.
 - **startup**: wall time and peak resident memory of commands that do little (`cbtc --help`, a command's `--help`)
   beside `python -c pass`.
 """
@@ -121,6 +123,70 @@ def fusion_speed(n_trains: int = 50, steps: int = 40, seed: int = 0) -> dict:
     return {"trains": n_trains, "steps": steps, "ours_us": round(1e6 * ours_s / updates, 1),
             "filterpy_us": round(1e6 * ref_s / updates, 1), "speedup": round(ref_s / ours_s, 2),
             "max_state_difference": diff_x, "max_covariance_difference": diff_p}
+
+
+class _NullClient:
+    """A bus client that takes every command and delivers nothing: the controller's own work, measured alone."""
+
+    def __init__(self):
+        self.published = 0
+
+    def subscribe(self, topic_filter, callback):
+        pass
+
+    def unsubscribe(self, topic_filter):
+        pass
+
+    def publish(self, topic, payload, retain=False):
+        self.published += 1
+
+
+def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0) -> dict:
+    """Wall time (us) a zone controller takes per report, its cycles included, replaying the reports of a simulated
+    run of `n_trains` on lego_long_oval (or lego_oval up to 11) into a zone of the same session; beside it, the
+    same reports only decoded and authenticated (the wire's share)."""
+    import logging
+
+    from cbtc.layout_files import load_layout
+    from cbtc.protocol import wire
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import queue_scenario, train_key
+    from cbtc.zone.factory import build_zone
+
+    layout = load_layout("lego_oval" if n_trains <= 11 else "lego_long_oval")
+    config = queue_scenario(layout, n_trains, seed=seed, duration_s=duration_s)
+    sim = Simulation(config, keep_reports=True)
+    sim.run()
+    heard = sim.recorder.heard()
+    keys = {spec.train_id: train_key(seed, spec.train_id) for spec in config.trains}
+    now = [0.0]
+    client = _NullClient()
+    zc = build_zone(config, keys, client, lambda: now[0], seed=config.seed)   # the run's session: reports answer it
+    zc.start()
+    logger = logging.getLogger("cbtc")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        next_cycle_s = 0.05
+        started = time.perf_counter()
+        for recv_s, topic, payload in heard:
+            while next_cycle_s <= recv_s:
+                now[0] = next_cycle_s
+                zc.cycle(next_cycle_s)
+                next_cycle_s += config.cycle_s
+            now[0] = recv_s
+            zc.on_report(topic, payload)
+        zone_s = time.perf_counter() - started
+    finally:
+        logger.setLevel(level)
+    started = time.perf_counter()
+    for _recv_s, topic, payload in heard:
+        wire.decode_report(keys[wire.train_id_of(topic)], topic, payload)
+    wire_s = time.perf_counter() - started
+    n = max(1, len(heard))
+    return {"trains": n_trains, "layout": layout.name, "reports": len(heard), "commands": client.published,
+            "zone_us_per_report": round(1e6 * zone_s / n, 1), "decode_us_per_report": round(1e6 * wire_s / n, 1),
+            "zone_over_decode": round(zone_s / wire_s, 2) if wire_s else None}
 
 
 STARTUP_COMMANDS = (("python -c pass", [sys.executable, "-c", "pass"]),

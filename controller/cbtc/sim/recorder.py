@@ -62,6 +62,10 @@ class Recorder:
             return
         self._heard[i].append((self.sim.scheduler.now_s(), topic, payload))
 
+    def heard(self):
+        """(recv_s, topic, payload) of every report heard and not yet decoded, all trains, in arrival order."""
+        return sorted((item for heard in self._heard for item in heard), key=lambda item: item[0])
+
     @property
     def reports(self):
         """Per train, (recv_s, report dict) of every authentic report heard, in arrival order."""
