@@ -94,17 +94,6 @@ def seed_range(text):
 seed_range.__name__ = "seed range"
 
 
-def positive(text):
-    """A finite number above zero."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number; give one above 0") from None
-    if not math.isfinite(value) or value <= 0.0:
-        raise argparse.ArgumentTypeError(f"{text} is out of range; give a finite number above 0")
-    return value
-
-
 def output_folder(text):
     """A folder to write into: it may not exist yet, but the folder it goes in must."""
     parent = os.path.dirname(os.path.abspath(text)) or "."

@@ -41,46 +41,40 @@ def register(sub):
     lat.add_argument("--seed", type=arg_types.seed, default=0)
     lat.add_argument("--json", action="store_true", help="print the figures as JSON")
     lat.set_defaults(func=run_latency)
-    sim = bench_sub.add_parser("sim", help="simulated seconds per wall second, beside a do-nothing controller",
-                               description=module_doc("cbtc.experiments.speed"),
-                               formatter_class=argparse.RawDescriptionHelpFormatter)
+    sim = _speed_parser(bench_sub, "sim", "simulated seconds per wall second, beside a do-nothing controller")
     sim.add_argument("--layout", type=arg_types.layout, default=None,
                      help="one layout (with --trains); default: the paper's 2 trains on itb_square, 11 on lego_oval, "
                           "50 on lego_long_oval")
     sim.add_argument("--trains", type=arg_types.train_count, default=None, help="trains on --layout")
     sim.add_argument("--duration", type=arg_types.seconds, default=30.0, help="simulated seconds a case (default 30)")
     sim.add_argument("--seed", type=arg_types.seed, default=0)
-    sim.add_argument("--json", action="store_true", help="print the figures as JSON")
     sim.set_defaults(func=run_sim)
-    fusion = bench_sub.add_parser("fusion", help="our filter's train-update beside filterpy's, on the same inputs",
-                                  description=module_doc("cbtc.experiments.speed"),
-                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    fusion = _speed_parser(bench_sub, "fusion", "our filter's train-update beside filterpy's, on the same inputs")
     fusion.add_argument("--trains", type=arg_types.train_count, default=50, help="filters (default 50)")
     fusion.add_argument("--steps", type=arg_types.whole(1), default=40, help="updates each (default 40)")
     fusion.add_argument("--seed", type=arg_types.seed, default=0)
-    fusion.add_argument("--json", action="store_true", help="print the figures as JSON")
     fusion.set_defaults(func=run_fusion)
-    ctl = bench_sub.add_parser("controller", help="a zone's time per report, beside decoding the reports alone",
-                               description=module_doc("cbtc.experiments.speed"),
-                               formatter_class=argparse.RawDescriptionHelpFormatter)
+    ctl = _speed_parser(bench_sub, "controller", "a zone's time per report, beside decoding the reports alone")
     ctl.add_argument("--trains", type=arg_types.train_count, default=None,
                      help="trains (default: 11 and 50); up to 11 on lego_oval, more on lego_long_oval")
     ctl.add_argument("--duration", type=arg_types.seconds, default=10.0,
                      help="simulated seconds of reports replayed (default 10)")
     ctl.add_argument("--seed", type=arg_types.seed, default=0)
-    ctl.add_argument("--json", action="store_true", help="print the figures as JSON")
     ctl.set_defaults(func=run_controller)
-    start = bench_sub.add_parser("startup", help="wall time and memory of commands that do little, beside python",
-                                 description=module_doc("cbtc.experiments.speed"),
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    start = _speed_parser(bench_sub, "startup", "wall time and memory of commands that do little, beside python")
     start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")
-    start.add_argument("--json", action="store_true", help="print the figures as JSON")
     start.set_defaults(func=run_startup)
 
 
+def _speed_parser(bench_sub, name, help_text):
+    """A `cbtc bench` measure of experiments/speed.py, with its `--json`."""
+    p = bench_sub.add_parser(name, help=help_text, description=module_doc("cbtc.experiments.speed"),
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    return p
+
+
 def run_latency(args):
-    if args.trains < 1 or args.train_procs < 1 or args.duration <= 0 or args.warmup < 0:
-        raise ConfigError("bench latency: --trains and --train-procs must be >= 1, --duration > 0, --warmup >= 0")
     from cbtc.experiments import latency
     result = latency.run_latency(args)
     if args.json:

@@ -30,7 +30,7 @@ def register(sub):
     p = sub.add_parser("campaign", help="seeded runs over fault classes, layouts and fleet sizes, judged by truth",
                        description=__doc__ + "\n" + campaign.__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--runs", type=arg_types.whole(1), default=100, help="number of runs (default 100)")
+    p.add_argument("--runs", type=arg_types.whole(1, MAX_RUNS), default=100, help="number of runs (default 100)")
     p.add_argument("--fault", action="append", default=[], metavar="CLASS[:PARAM=VALUE,...]",
                    help="a fault class to run (repeatable; default: every class); parameters given are kept, the "
                         "others drawn per run; classes: " + ", ".join(campaign.CLASSES))
@@ -72,14 +72,8 @@ def fleet_sizes(text: str) -> tuple:
 
 def checked_plan(args):
     """Every argument checked and every run planned before any run starts."""
-    if not 1 <= args.runs <= MAX_RUNS:
-        raise ConfigError(f"--runs {args.runs}: give 1 to {MAX_RUNS}")
     if not 5.0 <= args.duration <= 3600.0:
         raise ConfigError(f"--duration {args.duration}: give 5 to 3600 simulated seconds per run")
-    if args.seed < 0:
-        raise ConfigError(f"--seed {args.seed}: give a whole number >= 0")
-    if args.workers < 1:
-        raise ConfigError(f"--workers {args.workers}: give 1 or more")
     if args.scenario is not None:
         return _scenario_plan(args)
     args.layouts = args.layouts or ",".join(campaign.LAYOUTS)

@@ -1,5 +1,6 @@
 """Helpers shared by sub-commands: printing tables and JSON, the options of live commands."""
 
+import functools
 import json
 import os
 import sys
@@ -11,6 +12,7 @@ from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, train_keys
 from cbtc.zone.config import fleet_config
 
 
+@functools.lru_cache(maxsize=None)
 def module_doc(name: str) -> str:
     """The docstring of module `name`, read from its source without importing it (so `--help` stays light)."""
     import ast
@@ -44,7 +46,6 @@ def run_scenario_and_report(config, title, args) -> int:
     (a collision, an authority overrun, an authority reaching beyond the train ahead)."""
     import time
 
-    from cbtc.experiments.plots import distance_time_png
     from cbtc.sim.recorder import violations
     from cbtc.sim.simulation import Simulation
 
@@ -61,6 +62,7 @@ def run_scenario_and_report(config, title, args) -> int:
     wall_s = time.perf_counter() - started
     summary = recorder.summary()
     if args.plot:
+        from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
         distance_time_png([recorder], [title], args.plot)
     if args.json:
         print_json(summary)

@@ -83,7 +83,6 @@ def run(args):
         run_systems,
         steady_following,
     )
-    from cbtc.experiments.plots import distance_time_png
     from cbtc.layout_files import load_layout
 
     report_periods = _number_list(args.report_ms, "--report-ms", int, 1, 10000, "a whole number >= 1", "100,20")
@@ -114,6 +113,7 @@ def run(args):
               "following_by_speed": by_speed,
               "block_sweep": sweep}
     if args.plot:
+        from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
                           ["fixed block (baseline)", "moving block + Takagi control"], args.plot,
                           paper_note="paper: gap 1.89 m -> 0.91 m (-52 %), lap 15.72 s -> 6.84 s (-56 %)"

@@ -33,7 +33,6 @@ def register(sub):
 
 
 def run(args):
-    from cbtc.experiments.fusion_plot import fusion_png
     from cbtc.experiments.fusion_table import fusion_table, paper_ordering_holds, records_from_recorder
     from cbtc.layout_files import load_layout
     from cbtc.sim.simulation import Simulation
@@ -55,6 +54,7 @@ def run(args):
     train_ids = [t.train_id for t in config.trains]
     ips_sigma_m = config.trains[0].profile.ips_sigma_m
     if args.plot:
+        from cbtc.experiments.fusion_plot import fusion_png  # matplotlib: only when a plot is asked for
         fusion_png(layout, traces, train_ids[0], args.plot,
                    f"{layout.name}, seed {args.seed}, IPS noise {100 * ips_sigma_m:.1f} cm per axis")
     if args.json:

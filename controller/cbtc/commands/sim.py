@@ -1,10 +1,8 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
-from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import SCENARIO_HELP, run_scenario_and_report, with_scenario
-from cbtc.errors import ConfigError
 from cbtc.sim import faults
 
 EXAMPLES = (
@@ -50,17 +48,13 @@ DEFAULTS = {"layout": "lego_oval", "trains": 3, "duration": 120.0, "seed": 0, "p
 
 def run(args):
     from cbtc.layout_files import load_layout
-    from cbtc.sim.runs import sim_config
+    from cbtc.sim.runs import scenario_config, sim_config
 
     config = with_scenario(args, DEFAULTS, fixed=("layout", "trains", "start_gap"),
                            overrides={"seed": "seed", "duration": "duration_s", "policy": "policy",
                                       "estimator": "estimator"})
     if config is not None:
-        if args.blocks is not None:
-            config = replace(config, policy_options={**config.policy_options, "blocks": args.blocks})
-        if config.policy_options.get("blocks") is not None and config.policy != "fixed_block":
-            raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
-        config = replace(config, faults=config.faults + tuple(faults.parse(text) for text in args.fault))
+        config = scenario_config(config, blocks=args.blocks, fault_texts=args.fault)
         title = f"scenario {config.name}: {len(config.trains)} trains on {config.layout.name}, seed {config.seed}"
         return run_scenario_and_report(config, title, args)
     layout = load_layout(args.layout)

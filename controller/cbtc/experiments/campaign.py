@@ -17,7 +17,7 @@ import math
 import os
 import random
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 from cbtc.errors import ConfigError
 from cbtc.sim import faults
@@ -95,12 +95,9 @@ class RunSpec:
 
     def config(self):
         """The ScenarioConfig of this run, as `cbtc sim` builds it from the command; ConfigError for a bad value."""
-        from cbtc.sim.runs import sim_config
+        from cbtc.sim.runs import scenario_config, sim_config
         if self.scenario:
-            from cbtc.scenario_files import load_scenario
-            config = load_scenario(self.scenario)
-            return replace(config, seed=self.seed, duration_s=self.duration_s,
-                           faults=config.faults + tuple(faults.parse(text) for text in self.faults))
+            return scenario_config(self.scenario, self.seed, self.duration_s, fault_texts=self.faults)
         return sim_config(self.layout, self.trains, self.seed, self.duration_s, self.policy, blocks=self.blocks,
                           fault_texts=self.faults, start_gap_m=self.start_gap_m)
 

@@ -1,6 +1,8 @@
 """The configuration of one `cbtc sim` run from its command-line values: `cbtc sim` and `cbtc campaign` build it here,
 so a campaign's printed command reproduces its run exactly."""
 
+from dataclasses import replace
+
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
 from cbtc.sim import faults
@@ -13,11 +15,29 @@ def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = 
     loaded Layout); ConfigError for any bad value, before anything runs."""
     if isinstance(layout, str):
         layout = load_layout(layout)
-    if blocks is not None and policy != "fixed_block":
-        raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
+    _check_blocks(policy, blocks)
     options = {} if blocks is None else {"blocks": blocks}
     injected = tuple(faults.parse(text) for text in fault_texts)
     config = queue_scenario(layout, trains, seed=seed, duration_s=duration_s, start_gap_m=start_gap_m,
                             policy=policy, estimator=estimator, policy_options=options)
     config.faults = injected
     return config
+
+
+def scenario_config(scenario, seed: int = None, duration_s: float = None, blocks: int = None, fault_texts=()):
+    """The ScenarioConfig of `cbtc sim --scenario FILE ...` (`scenario`: a file, a packaged name or a loaded config):
+    the values given over the file's, `fault_texts` added to its faults; ConfigError for any bad value."""
+    if isinstance(scenario, str):
+        from cbtc.scenario_files import load_scenario
+        scenario = load_scenario(scenario)
+    changes = {name: value for name, value in (("seed", seed), ("duration_s", duration_s)) if value is not None}
+    if blocks is not None:
+        changes["policy_options"] = {**scenario.policy_options, "blocks": blocks}
+    config = replace(scenario, **changes)
+    _check_blocks(config.policy, config.policy_options.get("blocks"))
+    return replace(config, faults=config.faults + tuple(faults.parse(text) for text in fault_texts))
+
+
+def _check_blocks(policy, blocks):
+    if blocks is not None and policy != "fixed_block":
+        raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")

@@ -92,7 +92,7 @@ class TrainState:
         self.failures = 0            # exceptions in this train's handling: located afresh
         self.failures_said = set()   # the exception types already logged for it
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
-        self.position_memo = None    # (estimator, reports_taken, report_t_s, s_m): the head position last worked out
+        self.position_memo = None    # (estimator, reports_taken, s_m): the head position last worked out
 
     @property
     def train_id(self):
@@ -307,14 +307,13 @@ class ZoneController:
         """The train's head position (m) at its newest report, or None; a filter that fails or turns non-finite
         makes its train be located afresh."""
         memo = state.position_memo
-        if memo is not None and memo[0] is state.estimator and memo[1] == state.reports_taken \
-                and memo[2] == state.report_t_s:
-            return memo[3]   # no report since: the same estimator gives the same position (every report asks)
+        if memo is not None and memo[0] is state.estimator and memo[1] == state.reports_taken:
+            return memo[2]   # no report since: the same estimator gives the same position (every report asks)
         try:
             est = state.estimator.estimate(state.report_t_s)
             if est is None or (math.isfinite(est.s_m) and math.isfinite(est.sigma_s_m)):
                 s_m = None if est is None else est.s_m
-                state.position_memo = (state.estimator, state.reports_taken, state.report_t_s, s_m)
+                state.position_memo = (state.estimator, state.reports_taken, s_m)
                 return s_m
             raise ValueError("non-finite estimate")
         except Exception as exc:
