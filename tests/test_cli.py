@@ -119,3 +119,20 @@ def test_the_command_line_and_every_help_import_nothing_heavy():
             f"print([m for m in {heavy} if m in sys.modules])")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr
+
+
+def test_the_zone_and_a_simulation_run_without_scipy_filterpy_or_matplotlib():
+    """What `cbtc zone`, `cbtc trains` and `cbtc sim` run (the zone with its filters, virtual trains, the live loop)
+    imports none of the heavy reference and plotting libraries: filterpy stays the filter's reference in tests and
+    `cbtc bench fusion` only."""
+    heavy = ("scipy", "filterpy", "matplotlib")
+    code = ("import sys\n"
+            "from cbtc.bus.paho_bus import PahoBus\nfrom cbtc.live.loop import LiveLoop\n"
+            "from cbtc.sim.virtual_train import VirtualTrain\nfrom cbtc.sim.truth import TruthMonitor\n"
+            "from cbtc.zone.factory import build_zone\n"
+            "from cbtc.layout_files import load_layout\nfrom cbtc.sim.simulation import Simulation\n"
+            "from cbtc.zone.config import paper_scenario\n"
+            "Simulation(paper_scenario(load_layout('itb_square'), seed=0, laps=None, duration_s=3.0)).run()\n"
+            f"print([m for m in {heavy} if m in sys.modules])")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr

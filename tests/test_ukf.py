@@ -601,44 +601,55 @@ def test_fusion_command_names_bad_input(capsys):
     assert "--ips-sigma" in capsys.readouterr().err
 
 
-def test_filter_steps_equal_filterpy_reference():
-    """TrackUkf's own sigma points and predict give filterpy's MerweScaledSigmaPoints and UnscentedKalmanFilter
-    results (to 1e-12) on the same inputs: a predict, then an odometer and an IPS update."""
-    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+@pytest.mark.parametrize("layout_name", ["itb_square", "straight_test"])
+def test_filter_steps_equal_filterpy_reference(layout_name):
+    """TrackUkf gives what filterpy's UnscentedKalmanFilter gives (ReferenceUkf), to 1e-9, on random runs of every
+    step: predicts of random length, odometer, IPS fixes (some outliers, gated alike), balise reads (some in the
+    field) and ranges, with and without the scale error in the state, on a loop and on a line."""
+    from cbtc.estimation.reference_ukf import ReferenceUkf
 
-    from cbtc.estimation.track_ukf import _ALPHA, _BETA, _KAPPA, _SigmaPoints, fx, hx_ips, hx_odometer
-
-    layout = load_layout("itb_square")
+    layout = load_layout(layout_name)
     rng = np.random.default_rng(7)
-    for _ in range(20):
-        A = rng.normal(size=(4, 4))
-        P0 = A @ A.T * 1e-3 + np.eye(4) * 1e-4
-        x0 = [rng.uniform(0.5, layout.length_m - 0.5), rng.uniform(0, 0.6), rng.uniform(0, 5), rng.normal(0, 0.02)]
-        ours = _SigmaPoints(4, _ALPHA, _BETA, _KAPPA).sigma_points(x0, P0)
-        theirs = MerweScaledSigmaPoints(4, _ALPHA, _BETA, _KAPPA).sigma_points(x0, P0)
-        assert np.allclose(ours, theirs, rtol=0, atol=1e-12)
+    noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.05, 0.999)
+    worst, gated = 0.0, 0
+    for n in (3, 4):
+        for _ in range(8):
+            A = rng.normal(size=(n, n))
+            P0 = A @ A.T * 1e-3 + np.eye(n) * 1e-4
+            x0 = [rng.uniform(0.3, layout.length_m - 0.3), rng.uniform(0, 0.6), rng.uniform(0, 5),
+                  rng.normal(0, 0.02)][:n]
+            ours, ref = TrackUkf(layout, noise, x0, P0, 0.0), ReferenceUkf(layout, noise, x0, P0, 0.0)
+            t_s = 0.0
+            for _ in range(30):
+                t_s += rng.uniform(0.01, 0.1)
+                ours.predict_to(t_s)
+                ref.predict_to(t_s)
+                d_m = ref.x[2] + rng.normal(0, 0.002)
+                assert ours.update_odometer(d_m) and ref.update_odometer(d_m)
+                px, py = layout.xy_m(ref.x[0] + rng.normal(0, 0.02))
+                z = (px + rng.normal(0, 0.02) + (0.5 if rng.random() < 0.1 else 0.0), py + rng.normal(0, 0.02))
+                used = ours.update_ips(*z)
+                assert used == ref.update_ips(*z)
+                gated += not used
+                if rng.random() < 0.3:
+                    tag_m = float(layout.wrap(ref.x[0] + rng.normal(0.02, 0.01)))
+                    in_field = bool(rng.random() < 0.3)
+                    assert ours.update_tag(tag_m, ref.x[2], in_field) == ref.update_tag(tag_m, ref.x[2], in_field)
+                if rng.random() < 0.3:
+                    r_m = float(np.hypot(*(layout.xy(ref.x[0]) - (0.3, -0.2)))) + rng.normal(0, 0.02)
+                    assert ours.update_range(0.3, -0.2, r_m, 0.03) == ref.update_range(0.3, -0.2, r_m, 0.03)
+                worst = max(worst, float(np.max(np.abs(ours.x - ref.x))), float(np.max(np.abs(ours.P - ref.P))))
+    assert worst < 1e-9
+    assert gated > 0   # the gate was exercised, and agreed
 
-        noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.05, 0.999)
-        f = TrackUkf(layout, noise, x0, P0, 0.0)
-        ref = UnscentedKalmanFilter(dim_x=4, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx,
-                                    points=MerweScaledSigmaPoints(4, _ALPHA, _BETA, _KAPPA))
-        ref.x, ref.P = np.array(x0, dtype=float), P0.copy()
-        ref.Q = process_noise(4, 0.1, x0[1], x0[3], noise)
-        ref.predict(dt=0.1)
-        f.predict_to(0.1)
-        assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)
-        ref.P = 0.5 * (ref.P + ref.P.T)
-        ref.sigmas_f = ref.points_fn.sigma_points(ref.x, ref.P)
-        ref.update(np.array([x0[2] + 0.01]), R=np.array([[noise.odo_var_m2]]), hx=hx_odometer)
-        f.update_odometer(x0[2] + 0.01)
-        assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)
-        px, py = hx_ips(f.x, layout)
-        ref.P = 0.5 * (ref.P + ref.P.T)
-        ref.x[0] = layout.wrap(ref.x[0])
-        ref.sigmas_f = ref.points_fn.sigma_points(ref.x, ref.P)
-        ref.update(np.array([px + 0.01, py - 0.01]), R=np.eye(2) * noise.ips_var_m2, hx=hx_ips, layout=layout)
-        assert f.update_ips(px + 0.01, py - 0.01)
-        assert np.allclose(f.x, ref.x, atol=1e-12) and np.allclose(f.P, ref.P, atol=1e-12)
+
+def test_gates_are_chi_square_quantiles():
+    from cbtc.estimation.track_ukf import gate_sigmas
+
+    for p in (0.9, 0.99, 0.999, 0.9999):
+        one, two = gate_sigmas(p)
+        assert math.isclose(one, math.sqrt(chi2.ppf(p, 1)), rel_tol=1e-12)
+        assert math.isclose(two, math.sqrt(chi2.ppf(p, 2)), rel_tol=1e-12)
 
 
 def test_every_filter_setting_is_in_the_fusion_doc_with_its_default():

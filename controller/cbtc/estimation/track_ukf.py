@@ -13,16 +13,17 @@ Measurements: the odometer `d` (linear), an IPS fix `(x, y) = layout.xy(s)` (the
 reason for the UKF), and an RFID balise read `[tag s, d]` at the read. A loop's seam is handled by the residual
 function of the along-track coordinate; outliers by a Mahalanobis gate on every IPS fix and tag read.
 
-Filterpy's grain: module-level `fx(x, dt_s)` and `hx_*`, the real `dt_s` at every predict, explicit `Q` and `R`.
+Filterpy's grain: module-level `fx(x, dt_s)` and `hx_*`, the real `dt_s` at every predict, explicit `Q` and `R`;
+filterpy's UnscentedKalmanFilter on them is the reference `TrackUkf` is held equal to (tests, `cbtc bench fusion`).
+`TrackUkf` does the same algebra on Python floats: a state of 3 or 4 is too small for numpy's per-call cost to pay.
 """
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
+from statistics import NormalDist
 
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter, unscented_transform
-from scipy.linalg.lapack import dpotrf
-from scipy.stats import chi2
 
 from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
@@ -128,256 +129,318 @@ def along_track_residual(layout):
     return residual
 
 
-class _SigmaPoints(MerweScaledSigmaPoints):
-    """Merwe's scaled sigma points built in one numpy step from LAPACK's Cholesky factor (the routine behind scipy's
-    `cholesky`, called without its wrapper): the points filterpy's loop gives (x, then x + and x - each row of the
-    factor), at a fraction of the cost for a state of 3 or 4."""
-
-    def factor(self, P):
-        """The upper Cholesky factor of (lambda + n) P: its row j is sigma point j's offset from the mean."""
-        lambda_ = self.alpha ** 2 * (self.n + self.kappa) - self.n
-        U, info = dpotrf((lambda_ + self.n) * np.asarray(P, dtype=float), lower=0, clean=1)
-        if info or not math.isfinite(U.sum()):
-            raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
-        return U
-
-    def sigma_points(self, x, P):
-        U = self.factor(P)
-        x = np.asarray(x, dtype=float)
-        return np.concatenate((x[np.newaxis], x + U, x - U))
-
-
-def _transform(sigmas, Wm, Wc, noise_cov):
-    """filterpy's unscented_transform for plain differences: the weighted mean and covariance of the sigma points,
-    plus the noise."""
-    x = np.dot(Wm, sigmas)
-    y = sigmas - x
-    return x, (y.T * Wc) @ y + noise_cov
-
-
-class _Ukf(UnscentedKalmanFilter):
-    """filterpy's filter with its algebra done on whole arrays: the predict of `fx` in closed form, the cross variance
-    as one product, no sigma points drawn in `predict` (TrackUkf draws them when an update needs them, after it has
-    settled the state). The same steps as filterpy's (a test holds them equal to 1e-12)."""
-
-    def predict(self, dt=None, UT=None, fx=None, **fx_args):
-        """filterpy's unscented predict of `fx`, summed in closed form. `fx` is linear, with Jacobian J, but for the
-        odometer's k * v dt; at the point x +- u_j (u_j: row j of the factor) that term is k v +- (k b_j + v a_j) +
-        a_j b_j with a_j, b_j the k and v entries of u_j. The weighted sums over the points give the mean
-        fx(x) + dt c (c = 2 W sum a_j b_j, the k-v covariance) and the covariance J P J^T + Q plus, on the odometer,
-        dt^2 (W_c0 c^2 + 2 W sum (a_j b_j - c)^2): the terms the points' spread adds to the linearisation."""
-        dt_s = self._dt if dt is None else dt
-        x = np.array(self.x, dtype=float)
-        P = self.P
-        n = len(x)
-        U = self.points_fn.factor(P)   # raises for a covariance with no sigma points, as drawing them would
-        J = np.eye(n)
-        J[S, V] = dt_s
-        if n > K:
-            k, v = x[K], x[V]
-            J[D, V] = (1.0 + k) * dt_s
-            J[D, K] = v * dt_s
-            ab = U[:, K] * U[:, V]
-            c = 2.0 * float(self.Wm[1]) * float(ab.sum())
-            dev = ab - c
-            spread = float(self.Wc[0]) * c * c + 2.0 * float(self.Wc[1]) * float(np.dot(dev, dev))
-        else:
-            k, v, c, spread = 0.0, x[V], 0.0, 0.0
-            J[D, V] = dt_s
-        x[S] += v * dt_s
-        x[D] += ((1.0 + k) * v + c) * dt_s
-        P = J @ P @ J.T + self.Q
-        P[D, D] += dt_s * dt_s * spread
-        self.x, self.P = x, P
-        self.sigmas_f = None   # drawn from (x, P) when an update needs them
-
-    def update(self, z, R=None, UT=None, hx=None, **hx_args):
-        hx = self.hx if hx is None else hx
-        R = self.R if R is None else R
-        rows = _ALL_ROWS.get(hx)
-        if rows is not None:
-            sigmas_h = rows(self.sigmas_f, **hx_args)
-        else:
-            sigmas_h = np.atleast_2d([hx(s, **hx_args) for s in self.sigmas_f])
-        self.sigmas_h = sigmas_h
-        if self.residual_z is np.subtract:
-            zp, self.S = _transform(sigmas_h, self.Wm, self.Wc, R)
-            dz = sigmas_h - zp
-        else:
-            zp, self.S = unscented_transform(sigmas_h, self.Wm, self.Wc, R, self.z_mean, self.residual_z)
-            dz = np.array([self.residual_z(h, zp) for h in sigmas_h])
-        self.SI = self.inv(self.S)
-        dx = self.sigmas_f - self.x   # the state residual is a plain difference: s is wrapped after each step
-        Pxz = (self.Wc[:, np.newaxis] * dx).T @ dz
-        self.K = Pxz @ self.SI
-        self.y = self.residual_z(z, zp)
-        self.x = self.x + self.K @ self.y
-        self.P = self.P - self.K @ (self.S @ self.K.T)
-        self.z = np.array(z, dtype=float)
-        self._log_likelihood = self._likelihood = self._mahalanobis = None
-
-
-def _hx_ips_rows(sigmas, layout):
-    return layout.xy(sigmas[:, S])
-
-
-def _hx_tag_rows(sigmas, rfid_offset_m):
-    return np.stack((sigmas[:, S] + rfid_offset_m, sigmas[:, D]), axis=-1)
-
-
-# hx -> the same measurement of every sigma point (rows of a 2-D array) in one step
-_ALL_ROWS = {hx_ips: _hx_ips_rows, hx_tag: _hx_tag_rows}
-
-
 def initial_covariance(n, sigma_s_m, sigma_v_mps, sigma_d_m, sigma_k):
     """Diagonal P0 for a state of dimension `n` (3 without the scale error, 4 with it)."""
     return np.diag([sigma_s_m ** 2, sigma_v_mps ** 2, sigma_d_m ** 2, sigma_k ** 2][:n])
 
 
+
+
+def cholesky_upper(P, scale=1.0):
+    """The upper factor U (rows as lists) of `scale` * P, U^T U = scale P, in LAPACK dpotrf's order (the factor scipy
+    gives, to rounding); its row j is sigma point j's offset from the mean. LinAlgError when P is not positive
+    definite or not finite: such a covariance has no sigma points."""
+    n = len(P)
+    if n == 4:
+        return _cholesky_upper4(P, scale)
+    U = [[0.0] * n for _ in range(n)]
+    for j in range(n):
+        acc = scale * P[j][j]
+        for k in range(j):
+            acc -= U[k][j] * U[k][j]
+        if not 0.0 < acc < math.inf:
+            raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
+        pivot = math.sqrt(acc)
+        row = U[j]
+        row[j] = pivot
+        for i in range(j + 1, n):
+            acc = scale * P[j][i]
+            for k in range(j):
+                acc -= U[k][j] * U[k][i]
+            row[i] = acc / pivot
+    return U
+
+
+def _cholesky_upper4(P, scale):
+    """cholesky_upper written out for a state of 4, the filter's usual one."""
+    (p00, p01, p02, p03), (_, p11, p12, p13), (_, _, p22, p23), (_, _, _, p33) = P
+    a = scale * p00
+    if not 0.0 < a < math.inf:
+        raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
+    u00 = math.sqrt(a)
+    u01, u02, u03 = scale * p01 / u00, scale * p02 / u00, scale * p03 / u00
+    a = scale * p11 - u01 * u01
+    if not 0.0 < a < math.inf:
+        raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
+    u11 = math.sqrt(a)
+    u12, u13 = (scale * p12 - u01 * u02) / u11, (scale * p13 - u01 * u03) / u11
+    a = scale * p22 - u02 * u02 - u12 * u12
+    if not 0.0 < a < math.inf:
+        raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
+    u22 = math.sqrt(a)
+    u23 = (scale * p23 - u02 * u03 - u12 * u13) / u22
+    a = scale * p33 - u03 * u03 - u13 * u13 - u23 * u23
+    if not 0.0 < a < math.inf:
+        raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
+    return [[u00, u01, u02, u03], [0.0, u11, u12, u13], [0.0, 0.0, u22, u23], [0.0, 0.0, 0.0, math.sqrt(a)]]
+
+
+@lru_cache(maxsize=None)
+def gate_sigmas(gate_prob: float):
+    """(1-D, 2-D) Mahalanobis distances holding `gate_prob` of a normal innovation: the square roots of chi-square's
+    quantiles, in closed form (one degree: a normal's two-sided quantile; two: -2 ln(1 - p))."""
+    return NormalDist().inv_cdf(0.5 + 0.5 * gate_prob), math.sqrt(-2.0 * math.log1p(-gate_prob))
+
+
 class TrackUkf:
     """One train's filter over a layout: `predict_to(t_s)`, then an `update_*` per measurement.
 
-    Wraps filterpy's UnscentedKalmanFilter with MerweScaledSigmaPoints. Time `t_s` is whatever clock the caller
-    uses (seconds); nothing here reads a clock. `snapshot()` / `restore()` let the caller re-run measurements that
-    arrived out of order.
+    Filterpy's UnscentedKalmanFilter with Merwe's scaled sigma points (alpha 1, beta 2, kappa 0), its sums done in
+    closed form on floats: the predict of the near-linear `fx`, and the updates of measurements of the position alone
+    (IPS, range), where only the two sigma points off the position's axis measure anything else than the mean does.
+    Equal to the reference to rounding (a test holds it to 1e-9). Time `t_s` is whatever clock the caller uses (s);
+    nothing here reads a clock. `snapshot()` / `restore()` let the caller re-run measurements that arrived out of
+    order. `mean` and `cov` are the state and covariance as lists; `x` and `P` the same as numpy arrays.
     """
 
     def __init__(self, layout, noise: NoiseModel, x0, P0, t_s: float):
         self.layout = layout
         self.noise = noise
-        n = len(x0)
-        points = _SigmaPoints(n, alpha=_ALPHA, beta=_BETA, kappa=_KAPPA)
-        self.ukf = _Ukf(dim_x=n, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx, points=points)
-        self.ukf.x = np.array(x0, dtype=float)
-        self.ukf.P = np.array(P0, dtype=float)
+        self.mean = [float(v) for v in x0]
+        P0 = [[float(v) for v in row] for row in P0]
+        self.cov = [[0.5 * (a + b) for a, b in zip(row, col)] for row, col in zip(P0, zip(*P0))]
         self.t_s = float(t_s)
-        self._points_stale = True   # sigmas_f no longer drawn from (x, P): drawn afresh before the next update
-        self._along = along_track_residual(layout)
-        self._gate1 = math.sqrt(chi2.ppf(noise.gate_prob, 1))
-        self._gate2 = math.sqrt(chi2.ppf(noise.gate_prob, 2))
+        n = len(self.mean)
+        lambda_ = _ALPHA ** 2 * (n + _KAPPA) - n
+        self._spread = n + lambda_              # the points sit at x +- the rows of the factor of spread * P
+        self._wm0 = lambda_ / (n + lambda_)     # the mean's weights: the centre, then each other point
+        self._wc0 = self._wm0 + 1.0 - _ALPHA ** 2 + _BETA   # ... and the covariance's for the centre
+        self._w = 0.5 / (n + lambda_)
+        self._loop_m = layout.loop_length_m
+        self._closed = layout.closed
+        self._gate1, self._gate2 = gate_sigmas(noise.gate_prob)
 
     @property
     def x(self):
-        return self.ukf.x
+        return np.array(self.mean)
 
     @property
     def P(self):
-        return self.ukf.P
+        return np.array(self.cov)
 
     @property
     def n(self):
-        return len(self.ukf.x)
+        return len(self.mean)
 
     def snapshot(self):
-        return (self.t_s, self.ukf.x.copy(), self.ukf.P.copy())
+        return (self.t_s, tuple(self.mean), tuple(map(tuple, self.cov)))
 
     def restore(self, snap):
         self.t_s, x, P = snap
-        self.ukf.x = x.copy()
-        self.ukf.P = P.copy()
-        self._points_stale = True
+        self.mean = list(x)
+        self.cov = [list(row) for row in P]
 
     def predict_to(self, t_s: float) -> None:
-        """Advance to time `t_s` (s) with the real dt; a later call with the same time is a no-op in mean and P."""
+        """Advance to time `t_s` (s) with the real dt; a later call with the same time is a no-op in mean and P.
+
+        filterpy's unscented predict of `fx`, summed in closed form. `fx` is linear, with Jacobian J, but for the
+        odometer's k * v dt; at the point x +- u_j (u_j: row j of the factor) that term is k v +- (k b_j + v a_j) +
+        a_j b_j with a_j, b_j the k and v entries of u_j. The weighted sums over the points give the mean fx(x) + dt c
+        (c = 2 W sum a_j b_j, the k-v covariance) and the covariance J P J^T + Q plus, on the odometer, dt^2 (W_c0 c^2
+        + 2 W sum (a_j b_j - c)^2): the terms the points' spread adds to the linearisation."""
         dt_s = t_s - self.t_s
-        x = self.ukf.x
-        k = x[K] if self.n > K else 0.0
-        self.ukf.Q = process_noise(self.n, dt_s, x[V], k, self.noise)
-        self.ukf.predict(dt=dt_s)
+        x, P = self.mean, self.cov
+        n = len(x)
+        U = cholesky_upper(P, self._spread)   # raises for a covariance with no sigma points, as drawing them would
+        v = x[V]
+        (pss, psv, psd, *sk), (_, pvv, pvd, *vk), (_, _, pdd, *dk) = P[:3]
+        if n > K:
+            k = x[K]
+            psk, pvk, pdk, pkk = sk[0], vk[0], dk[0], P[K][K]
+            ab0, ab1 = U[0][K] * U[0][V], U[1][K] * U[1][V]   # rows 2 and 3 have no v entry (upper triangular)
+            c = 2.0 * self._w * (ab0 + ab1)
+            spread = self._wc0 * c * c + 2.0 * self._w * ((ab0 - c) ** 2 + (ab1 - c) ** 2 + 2.0 * c * c)
+        else:
+            k, c, spread = 0.0, 0.0, 0.0
+            psk = pvk = pdk = pkk = 0.0
+        gain = 1.0 + k
+        a, b = gain * dt_s, v * dt_s   # J[D, V] and J[D, K]; J[S, V] = dt
+        # Q: white acceleration drives s, v and d alike; slip and the scale's walk grow with the distance travelled
+        noise = self.noise
+        q = noise.accel_psd_m2ps3
+        adt = abs(dt_s)
+        q3, q2, q1 = q * adt ** 3 / 3.0, q * adt ** 2 / 2.0, q * adt
+        travel_m = abs(v) * adt
+        # J P J^T + Q, entry by entry (J: s += v dt, d += (1 + k) v dt)
+        dv = pvd + a * pvv + b * pvk            # (J P J^T)[V, D]
+        ss = pss + 2.0 * dt_s * psv + dt_s * dt_s * pvv + q3
+        sv = psv + dt_s * pvv + q2
+        sd = psd + a * psv + b * psk + dt_s * dv + gain * q3
+        vv = pvv + q1
+        vd = dv + gain * q2
+        dd = (pdd + a * a * pvv + b * b * pkk + 2.0 * (a * pvd + b * pdk + a * b * pvk)
+              + gain * gain * q3 + noise.slip_var_m2_per_m * travel_m + dt_s * dt_s * spread)
+        if n > K:
+            sk_ = psk + dt_s * pvk
+            dk_ = pdk + a * pvk + b * pkk
+            kk = pkk + noise.scale_var_per_m * travel_m
+            self.cov = [[ss, sv, sd, sk_], [sv, vv, vd, pvk], [sd, vd, dd, dk_], [sk_, pvk, dk_, kk]]
+        else:
+            self.cov = [[ss, sv, sd], [sv, vv, vd], [sd, vd, dd]]
+        x[S] += v * dt_s
+        x[D] += (gain * v + c) * dt_s
         self.t_s = float(t_s)
         self._settle()
 
     def update_odometer(self, d_m: float) -> bool:
         """Fold in the encoder odometer (m) at the current time. Never gated: the encoder is the backbone. The
         odometer is a state, so the unscented update is exactly the Kalman update, done here in closed form."""
-        ukf = self.ukf
-        P = ukf.P
-        S_m2 = P[D, D] + self.noise.odo_var_m2
-        gain = P[:, D] / S_m2
-        ukf.x = ukf.x + gain * (d_m - ukf.x[D])
-        ukf.P = P - np.outer(gain, gain) * S_m2
+        x, P = self.mean, self.cov
+        s_m2 = P[D][D] + self.noise.odo_var_m2
+        gains = [row[D] / s_m2 for row in P]
+        y = float(d_m) - x[D]
+        self.mean = [xi + g * y for xi, g in zip(x, gains)]
+        self.cov = [[p - gs * h for p, h in zip(row, gains)] for row, gs in zip(P, [g * s_m2 for g in gains])]
         self._settle()
         return True
 
     def update_ips(self, x_m: float, y_m: float) -> bool:
         """Fold in an IPS fix in the layout frame (m) unless it fails the gate; True when used."""
-        self.ukf.residual_z = np.subtract
-        R = np.eye(2) * self.noise.ips_var_m2
-        return self._gated_update(np.array([x_m, y_m]), R, self._gate2, hx_ips, layout=self.layout)
+        var = self.noise.ips_var_m2
+        return self._position_update(self.layout.xy_m, (float(x_m), float(y_m)), ((var, 0.0), (0.0, var)),
+                                     self._gate2)
 
     def update_tag(self, tag_s_m: float, d_m: float, in_field: bool = False) -> bool:
         """Fold in a balise read: the tag at `tag_s_m` was read when the odometer showed `d_m`; True when used.
-        `in_field`: the train may have stood in the reader's field when the read came (tag_read_model)."""
-        n = self.noise
-        offset_m, var_m2 = tag_read_model(n, float(self.ukf.x[V]), in_field)
-        R = np.diag([var_m2, n.odo_var_m2])
-        self.ukf.residual_z = self._along
-        return self._gated_update(np.array([tag_s_m, d_m]), R, self._gate2, hx_tag, rfid_offset_m=offset_m)
+        `in_field`: the train may have stood in the reader's field when the read came (tag_read_model). The read is
+        linear in the state ([s + offset, d]), so the unscented sums are exactly those of the Kalman update, taken
+        along the track (the short way round a loop's seam)."""
+        x, P = self.mean, self.cov
+        cholesky_upper(P, self._spread)   # a covariance with no sigma points raises, as drawing them would
+        offset_m, var_m2 = tag_read_model(self.noise, x[V], in_field)
+        s_m2 = ((P[S][S] + var_m2, P[S][D]), (P[D][S], P[D][D] + self.noise.odo_var_m2))
+        cross = [(row[S], row[D]) for row in P]
+        y = (circular_offset_m(tag_s_m - (x[S] + offset_m), 0.0, self._loop_m), d_m - x[D])
+        return self._kalman(cross, s_m2, y, self._gate2)
 
     def update_range(self, radio_x_m: float, radio_y_m: float, range_m: float, sigma_m: float) -> bool:
         """Fold in a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at a surveyed position; True when
         used."""
-        self.ukf.residual_z = np.subtract
-        return self._gated_update(np.array([range_m]), np.array([[sigma_m ** 2]]), self._gate1, hx_range,
-                                  layout=self.layout, radio_x_m=radio_x_m, radio_y_m=radio_y_m)
+        xy_m = self.layout.xy_m
+
+        def distance(s_m):
+            px, py = xy_m(s_m)
+            return (math.hypot(px - radio_x_m, py - radio_y_m),)
+
+        return self._position_update(distance, (range_m,), ((sigma_m ** 2,),), self._gate1)
 
     def relocate(self, s_m: float, sigma_s_m: float) -> None:
         """Start the position over at `s_m` (m) with 1-sigma `sigma_s_m`, keeping speed, odometer and scale."""
-        P = self.ukf.P
-        P[S, :] = 0.0
-        P[:, S] = 0.0
-        P[S, S] = sigma_s_m ** 2
-        self.ukf.x[S] = s_m
+        P = self.cov
+        for row in P:
+            row[S] = 0.0
+        P[S] = [0.0] * len(P)
+        P[S][S] = sigma_s_m ** 2
+        self.mean[S] = s_m
         self._settle()
 
     def widen_position(self, sigma_m: float) -> None:
         """Add `sigma_m` (m) of independent uncertainty to the position: a motion of known length and unknown sign."""
-        self.ukf.P[S, S] += sigma_m ** 2
+        self.cov[S][S] += sigma_m ** 2
         self._settle()
 
     def hold_still(self, sigma_v_mps: float, d_m: float) -> None:
         """The train's counted motion has no sign (braked, or rolling) and is not travel: its speed is taken as 0
         (1-sigma `sigma_v_mps`) and its odometer as standing at `d_m`, both uncorrelated, so that neither is explained
         by the scale."""
-        P = self.ukf.P
+        P = self.cov
         for i, var in ((V, sigma_v_mps ** 2), (D, self.noise.odo_var_m2)):
-            P[i, :] = 0.0
-            P[:, i] = 0.0
-            P[i, i] = var
-        self.ukf.x[V] = 0.0
-        self.ukf.x[D] = d_m
+            for row in P:
+                row[i] = 0.0
+            P[i] = [0.0] * len(P)
+            P[i][i] = var
+        self.mean[V] = 0.0
+        self.mean[D] = d_m
         self._settle()
 
     def reopen_scale(self, sigma: float) -> None:
         """Let the encoder scale be unknown again to at least 1-sigma `sigma` (its learnt value kept as the mean): the
         position then widens with the distance travelled until other sensors pin the scale. No-op without a scale."""
         if self.n > K:
-            self.ukf.P[K, K] = max(float(self.ukf.P[K, K]), sigma * sigma)
+            self.cov[K][K] = max(self.cov[K][K], sigma * sigma)
             self._settle()
 
-    def _gated_update(self, z, R, gate, hx, **hx_args) -> bool:
-        self._draw_points()
-        x_before, P_before = self.ukf.x.copy(), self.ukf.P.copy()
-        self.ukf.update(z, R=R, hx=hx, **hx_args)
-        if self.ukf.mahalanobis > gate:
-            self.ukf.x, self.ukf.P = x_before, P_before
-            return False   # (x, P) as before: the points drawn from them still hold
+    def _position_update(self, h, z, R, gate) -> bool:
+        """filterpy's unscented update for a measurement `h(s)` of the position alone (a tuple of floats). The factor
+        is upper triangular, so every sigma point but x +- u_0 has the mean's position and measures h(s): the sums
+        over the points take three values of h."""
+        x = self.mean
+        u0 = cholesky_upper(self.cov, self._spread)[0]
+        s_m = x[S]
+        w, wc0, wm0 = self._w, self._wc0, self._wm0
+        same = 2 * len(x) - 2   # the points off the position's axis
+        h0, hp, hm = h(s_m), h(s_m + u0[S]), h(s_m - u0[S])
+        if len(z) == 1:
+            (a0,), (b0,), (c0,) = h0, hp, hm
+            zp = wm0 * a0 + w * (b0 + c0 + same * a0)
+            e0, ep, em = a0 - zp, b0 - zp, c0 - zp
+            s_m2 = ((wc0 * e0 * e0 + w * (ep * ep + em * em + same * e0 * e0) + R[0][0],),)
+            dh = w * (b0 - c0)
+            return self._kalman([(u * dh,) for u in u0], s_m2, (z[0] - zp,), gate)
+        (a0, a1), (b0, b1), (c0, c1) = h0, hp, hm
+        zp0 = wm0 * a0 + w * (b0 + c0 + same * a0)
+        zp1 = wm0 * a1 + w * (b1 + c1 + same * a1)
+        e0, ep0, em0 = a0 - zp0, b0 - zp0, c0 - zp0
+        e1, ep1, em1 = a1 - zp1, b1 - zp1, c1 - zp1
+        s00 = wc0 * e0 * e0 + w * (ep0 * ep0 + em0 * em0 + same * e0 * e0) + R[0][0]
+        s01 = wc0 * e0 * e1 + w * (ep0 * ep1 + em0 * em1 + same * e0 * e1) + R[0][1]
+        s11 = wc0 * e1 * e1 + w * (ep1 * ep1 + em1 * em1 + same * e1 * e1) + R[1][1]
+        dh0, dh1 = w * (b0 - c0), w * (b1 - c1)
+        return self._kalman([(u * dh0, u * dh1) for u in u0], ((s00, s01), (s01, s11)), (z[0] - zp0, z[1] - zp1),
+                            gate)
+
+    def _kalman(self, cross, s_m2, y, gate) -> bool:
+        """The update from the state-measurement cross covariance, the innovation covariance and the innovation
+        (one or two entries), unless the innovation's Mahalanobis distance exceeds `gate` (or is not a number):
+        then nothing changes. True when used."""
+        x, P = self.mean, self.cov
+        if len(y) == 1:
+            (s_m2,), = s_m2
+            (y0,) = y
+            if not y0 * y0 / s_m2 <= gate * gate:
+                return False
+            gains = [c0 / s_m2 for (c0,) in cross]
+            self.mean = [xi + g * y0 for xi, g in zip(x, gains)]
+            self.cov = [[p - gs * h for p, h in zip(row, gains)] for row, gs in zip(P, [g * s_m2 for g in gains])]
+            self._settle()
+            return True
+        (a, b), (c, d) = s_m2
+        det = a * d - b * c
+        i00, i01, i10, i11 = d / det, -b / det, -c / det, a / det
+        y0, y1 = y
+        if not y0 * (i00 * y0 + i01 * y1) + y1 * (i10 * y0 + i11 * y1) <= gate * gate:
+            return False
+        gains = [(c0 * i00 + c1 * i10, c0 * i01 + c1 * i11) for c0, c1 in cross]
+        self.mean = [xi + g0 * y0 + g1 * y1 for xi, (g0, g1) in zip(x, gains)]
+        n = len(x)
+        P = [list(row) for row in P]
+        for i in range(n):
+            g0, g1 = gains[i]
+            s0, s1 = g0 * a + g1 * c, g0 * b + g1 * d   # row i of (gain S)
+            row = P[i]
+            for j in range(i, n):
+                h0, h1 = gains[j]
+                row[j] = P[j][i] = row[j] - (s0 * h0 + s1 * h1)
+        self.cov = P
         self._settle()
         return True
 
     def _settle(self):
-        """Keep P symmetric, s on the layout and the scale error within what a wheel can have (an odometer that
-        stands while the speed does not, as in a roll, would otherwise take the scale to -1); the sigma points are
-        drawn from them when an update needs them."""
-        ukf = self.ukf
-        ukf.P = 0.5 * (ukf.P + ukf.P.T)
-        if self.n > K:
-            ukf.x[K] = min(max(ukf.x[K], K_LOW), K_HIGH)
-        if self.layout.closed:
-            ukf.x[S] = self.layout.wrap(ukf.x[S])
-        self._points_stale = True
-
-    def _draw_points(self):
-        if self._points_stale:
-            self.ukf.sigmas_f = self.ukf.points_fn.sigma_points(self.ukf.x, self.ukf.P)
-            self._points_stale = False
+        """Keep s on the layout and the scale error within what a wheel can have (an odometer that stands while the
+        speed does not, as in a roll, would otherwise take the scale to -1). P stays symmetric: every step builds it
+        so."""
+        x = self.mean
+        if len(x) > K:
+            x[K] = min(max(x[K], K_LOW), K_HIGH)
+        if self._closed:
+            x[S] = x[S] % self._loop_m

@@ -23,7 +23,7 @@ import math
 import statistics
 from dataclasses import dataclass, fields
 
-from scipy.linalg.lapack import dpotrf
+from numpy.linalg import LinAlgError
 
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate
@@ -37,6 +37,7 @@ from cbtc.estimation.track_ukf import (
     S,
     TrackUkf,
     V,
+    cholesky_upper,
     initial_covariance,
     tag_read_model,
 )
@@ -240,7 +241,7 @@ class UkfEstimator:
         _t, x, P = state.snap
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
-        low = 1.0 + k_m - k_sigma * math.sqrt(max(float(P[K, K]), 0.0))
+        low = 1.0 + k_m - k_sigma * math.sqrt(max(P[K][K], 0.0))
         return max(low, _WHEEL_LOWEST) if math.isfinite(low) else low
 
     def healthy(self) -> bool:
@@ -250,9 +251,13 @@ class UkfEstimator:
         if state is None:
             return True
         _t, x, P = state.snap
-        if not math.isfinite(float(x.sum()) + float(P.sum())):   # a NaN or an infinity anywhere
+        if not math.isfinite(sum(x) + sum(map(sum, P))):   # a NaN or an infinity anywhere
             return False
-        return dpotrf(P, lower=0, clean=0)[1] == 0   # LAPACK's Cholesky succeeds (the values were finite)
+        try:
+            cholesky_upper(P)
+        except LinAlgError:
+            return False
+        return True
 
     def counters(self) -> dict:
         """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""
@@ -358,7 +363,7 @@ class UkfEstimator:
         state = self._newest
         if state is None or len(state.snap[1]) <= K:
             return False
-        return float(state.snap[2][K, K]) >= (0.5 * self.params.step_scale_sigma) ** 2
+        return float(state.snap[2][K][K]) >= (0.5 * self.params.step_scale_sigma) ** 2
 
     def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
         """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
@@ -434,16 +439,16 @@ class UkfEstimator:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
                 tag_s_m, d_m, in_field = event.data
-                offset_m, _var = tag_read_model(self.noise, float(f.ukf.x[V]), in_field)
-                here_m = tag_s_m - offset_m + float(f.ukf.x[D]) - d_m
-                story_m = circular_offset_m(here_m, float(f.ukf.x[S]), self.layout.loop_length_m)
+                offset_m, _var = tag_read_model(self.noise, float(f.mean[V]), in_field)
+                here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
+                story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
                 if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
                     new.tag_offset = story_m
         elif event.kind == "range":
             f.update_range(*event.data)
         else:
             fix_s_m = self.layout.project(*event.data)
-            s_m, d_m = float(f.ukf.x[S]), float(f.ukf.x[D])
+            s_m, d_m = float(f.mean[S]), float(f.mean[D])
             new.innovations = (state.innovations + (circular_offset_m(fix_s_m, s_m, self.layout.loop_length_m),))[
                 -self.params.relocate_after:]
             # while the sensors disagree the IPS is as suspect as the wheel: a fix far from the wheel's position is
@@ -470,8 +475,8 @@ class UkfEstimator:
         """A scale learnt beyond three prior sigmas is a wheel that slips or spins, which stops when it will: the
         scale stays open to a third of its error, so that the position covers a wheel that reads true again."""
         if f.n > K:
-            error = abs(float(f.ukf.x[K]))
-            if error > 3.0 * self.params.scale_sigma and float(f.ukf.P[K, K]) < (error / 3.0) ** 2:
+            error = abs(float(f.mean[K]))
+            if error > 3.0 * self.params.scale_sigma and f.cov[K][K] < (error / 3.0) ** 2:
                 f.reopen_scale(error / 3.0)
 
     def _disagreement(self, consensus, innovations):
@@ -523,15 +528,15 @@ class UkfEstimator:
         """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
         three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
         _low, _high, anchor_m, sigma_m = consensus
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.ukf.x[V]), in_field)
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]), in_field)
         read_s_m = tag_s_m - offset_m
         tag_sigma_m = math.sqrt(var_m2)
         ring_m = self.layout.loop_length_m
         if abs(circular_offset_m(anchor_m + d_m, read_s_m, ring_m)) > 3.0 * math.hypot(sigma_m, tag_sigma_m):
             return False
-        f.relocate(self.layout.wrap(read_s_m + float(f.ukf.x[D]) - d_m), tag_sigma_m)
+        f.relocate(self.layout.wrap(read_s_m + float(f.mean[D]) - d_m), tag_sigma_m)
         if f.n > K:   # the wheel was wrong: its scale is learnt afresh from the fixes that follow
-            f.ukf.P[K, K] = max(float(f.ukf.P[K, K]), (3.0 * self.params.scale_sigma) ** 2)
+            f.reopen_scale(3.0 * self.params.scale_sigma)
         return True
 
     def _load(self, state):
@@ -631,8 +636,8 @@ class UkfEstimator:
         dt_s = (now_s - offset_s) - t_s
         q = self.noise.accel_psd_m2ps3
         adt = abs(dt_s)
-        var_s = P[S, S] + 2.0 * dt_s * P[S, V] + dt_s * dt_s * P[V, V] + q * adt ** 3 / 3.0
-        var_v = P[V, V] + q * adt
+        var_s = P[S][S] + 2.0 * dt_s * P[S][V] + dt_s * dt_s * P[V][V] + q * adt ** 3 / 3.0
+        var_v = P[V][V] + q * adt
         ahead_m = behind_m = 0.0
         if state.disagree is not None:
             ahead_m, behind_m = max(0.0, state.disagree[1]), max(0.0, -state.disagree[0])

@@ -134,6 +134,11 @@ class Path:
         i = np.clip(np.searchsorted(self._start, s, side="right") - 1, 0, len(self._starts) - 1)
         return self._pose_on(i, s - self._start[i])
 
+    def xy_m(self, s_m: float):
+        """(x_m, y_m) at arc length `s_m` as two floats: the filter's measurement model asks for one point at a time."""
+        x, y, _ = self._pose_scalar(s_m)
+        return x, y
+
     def xy(self, s_m):
         """Positions in metres, shape `np.shape(s_m) + (2,)`."""
         if np.ndim(s_m) == 0:

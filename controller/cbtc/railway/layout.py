@@ -73,6 +73,10 @@ class Layout:
         """Position (m) at `s_m`, shape `np.shape(s_m) + (2,)`."""
         return self.path.xy(s_m)
 
+    def xy_m(self, s_m: float):
+        """(x_m, y_m) floats at `s_m` (wraps on a loop)."""
+        return self.path.xy_m(s_m)
+
     def project(self, x_m, y_m, s_hint_m=None, window_m=0.5):
         """`s_m` of the track point nearest to (x_m, y_m); with a hint, the nearest within `window_m` of it."""
         return self.path.project(x_m, y_m, s_hint_m, window_m)
