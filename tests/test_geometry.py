@@ -146,3 +146,19 @@ def test_wrap_and_ahead_across_the_seam():
     assert line.wrap(5.0) == 3.0 and line.wrap(-2.0) == 0.0
     assert line.ahead_m(2.0, 1.0) == -1.0
     assert line.pose(5.0) == pytest.approx((3.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("name", ["itb_square", "lego_chicane", "straight_test", "lego_long_oval"])
+def test_projecting_one_point_on_floats_agrees_with_the_array_version(name):
+    """A float point takes the scalar projection (the filter's IPS fixes, one at a time): it finds what the array
+    version finds, junctions and points off either end of a line included."""
+    layout = load_layout(name)
+    rng = np.random.default_rng(3)
+    points = [layout.xy_m(s) for s in layout.path._starts]
+    for s in rng.uniform(-0.3, layout.length_m + 0.3, 500):
+        x, y = layout.xy_m(float(s))
+        points.append((x + rng.normal(0, 0.3), y + rng.normal(0, 0.3)))
+    arr = np.array(points, dtype=float)
+    ours = [layout.project(float(x), float(y)) for x, y in points]
+    assert all(isinstance(s, float) for s in ours)
+    assert np.max(np.abs(np.array(ours) - layout.project(arr[:, 0], arr[:, 1]))) < 1e-12

@@ -80,7 +80,8 @@ class Path:
             s += length
         self.length_m = s
         self.end_pose = (x, y, h)
-        self._starts = starts                     # Python list for the scalar path (bisect)
+        self._starts = starts                     # Python lists for the scalar paths (bisect, projection)
+        self._lens = lengths
         self._seg = tuple(zip(ks, xs, ys, hs, cxs, cys))
         self._start = np.asarray(starts)
         self._len = np.asarray(lengths)
@@ -149,6 +150,35 @@ class Path:
 
     # --- (x, y) -> s -------------------------------------------------------------------------------------------
 
+    def _project_scalar(self, px, py):
+        """`project` of one point over the whole path, on floats: the same candidates (each run's free minimiser
+        clipped to the run, then every run's start, then every run's end) taken in the same order, so the same
+        answer, ties included."""
+        found = []   # (distance^2, s) per candidate, in the array version's order
+        ends = ([], [], [])
+        for (k, x0, y0, h0, cx, cy), start, length in zip(self._seg, self._starts, self._lens):
+            if k == 0.0:
+                d_free = (px - x0) * math.cos(h0) + (py - y0) * math.sin(h0)
+            else:
+                sign = 1.0 if k > 0.0 else -1.0
+                theta0 = h0 - sign * (math.pi / 2)
+                swept = ((math.atan2(py - cy, px - cx) - theta0) * sign) % (2.0 * math.pi)
+                d_free = swept / abs(k)
+            for slot, d in zip(ends, (min(max(d_free, 0.0), length), 0.0, length)):
+                if k == 0.0:
+                    qx, qy = x0 + d * math.cos(h0), y0 + d * math.sin(h0)
+                else:
+                    h = h0 + k * d
+                    qx, qy = cx + math.sin(h) / k, cy - math.cos(h) / k
+                slot.append(((qx - px) ** 2 + (qy - py) ** 2, start + d))
+        for slot in ends:
+            found.extend(slot)
+        best = found[0]
+        for cand in found[1:]:
+            if cand[0] < best[0]:
+                best = cand
+        return self.wrap(best[1])
+
     def project(self, x_m, y_m, s_hint_m=None, window_m=0.5):
         """Arc length (m) of the point of the path nearest to (x_m, y_m).
 
@@ -157,6 +187,8 @@ class Path:
         Floats or broadcastable arrays; a float for scalar input.
         """
         local = s_hint_m is not None and not (self.closed and 2.0 * window_m >= self.length_m)
+        if not local and isinstance(x_m, (float, int)) and isinstance(y_m, (float, int)):
+            return self._project_scalar(float(x_m), float(y_m))
         scalar = np.ndim(x_m) == 0 and np.ndim(y_m) == 0 and np.ndim(s_hint_m) == 0
         x, y, hint = np.broadcast_arrays(np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float),
                                          np.asarray(s_hint_m if local else 0.0, dtype=float))
