@@ -1,4 +1,4 @@
-"""`cbtc bench sim|fusion|startup`: each figure comes with its reference from the same run (no timing is asserted:
+"""`cbtc bench sim|fusion|controller|memory|startup`: each figure comes with its reference from the same run (no timing is asserted:
 the figures are for people; the tests check what is measured and that ours equals the reference where it must)."""
 
 import json
@@ -40,3 +40,10 @@ def test_bench_controller_replays_a_run_into_a_zone_that_answers(capsys):
     row = bench(capsys, ["controller", "--trains", "3", "--duration", "5"])["controller"][0]
     assert row["trains"] == 3 and row["reports"] > 200 and row["commands"] > row["reports"] / 2
     assert row["zone_us_per_report"] > row["decode_us_per_report"] > 0
+
+
+def test_bench_memory_measures_a_run_beside_one_keeping_every_sample(capsys):
+    row = bench(capsys, ["memory", "--trains", "2", "--duration", "20"])["memory"]
+    assert row["trains"] == 2 and row["simulated_s"] == 20.0 and row["collisions"] == 0
+    assert row["end_mib"] > 5 and row["warm_mib"] > 5
+    assert "reference_growth_mib_per_hour" in row and "growth_mib_per_hour" in row

@@ -90,7 +90,7 @@ def test_a_recorded_simulated_run_calibrates_the_encoder_within_half_a_percent(t
 
     path = str(tmp_path / "run.jsonl")
     config = sim_config("straight_test", 1, seed=4, duration_s=20.0)
-    sim = Simulation(config)
+    sim = Simulation(config, keep_samples=True)
     recording = ReportRecording(path)
     sim.record_reports(recording)
     recorder = sim.run()

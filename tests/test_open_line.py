@@ -10,7 +10,7 @@ from cbtc.sim.simulation import Simulation
 
 
 def _run(config):
-    recorder = Simulation(config).run()
+    recorder = Simulation(config, keep_samples=True).run()
     return recorder, recorder.summary()
 
 

@@ -32,7 +32,7 @@ def two_trains(layout, gap_m=1.5, seed=1, duration_s=30.0, leader_v_mps=0.6):
     leader = profile.with_changes(v_max_mps=leader_v_mps)
     return Simulation(ScenarioConfig(layout=layout, seed=seed, duration_s=duration_s,
                                      trains=[TrainSpec("A", layout.wrap(gap_m + profile.length_m), (), leader),
-                                             TrainSpec("B", 0.0, (), profile)]))
+                                             TrainSpec("B", 0.0, (), profile)]), keep_samples=True)
 
 
 def run_to(sim, t_s):
@@ -143,7 +143,7 @@ def test_estimates_track_truth_in_the_demo(square):
 def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     """A train's board reboots mid-run: seq and clock start again; the controller re-locates it before it moves."""
     from cbtc.sim.drivers import SimIps
-    sim = Simulation(paper_scenario(square, seed=6, laps=None, duration_s=60))
+    sim = Simulation(paper_scenario(square, seed=6, laps=None, duration_s=60), keep_samples=True)
     run_to(sim, 15.0)
     train = sim.trains[1]
     old = train.obu
@@ -170,7 +170,7 @@ def test_an_encoder_that_reads_short_still_stops_within_the_authority(square):
     leader = TrainProfile().with_changes(v_max_mps=0.45)
     sim = Simulation(ScenarioConfig(layout=square, seed=2, duration_s=40.0,
                                     trains=[TrainSpec("A", square.wrap(1.5 + leader.length_m), (), leader),
-                                            TrainSpec("B", 0.0, (), profile)]))
+                                            TrainSpec("B", 0.0, (), profile)]), keep_samples=True)
     run_to(sim, 20.0)
     est = sim.zc.trains["B"].estimator
     low = est.odometer_per_m_low(sim.config.params.k_sigma)

@@ -41,14 +41,40 @@ def test_a_fixed_block_gridlock_is_refused_before_it_starts(capsys, argv, named)
     assert named in capsys.readouterr().err
 
 
-def test_how_long_every_train_has_stood_still_flags_a_gridlock():
-    from cbtc.sim.recorder import all_standing_s
+def test_the_running_figures_equal_those_from_every_sample():
+    """The recorder's summary comes from running statistics (bounded memory): it equals the figures computed from
+    every sample of the same run, kept on request. Four trains, stations, a gridlock-free run with laps."""
+    import numpy as np
 
-    t = [0.0, 1.0, 2.0, 3.0, 4.0]
-    assert all_standing_s(t, [[0.1, 0.2, 0.0, 0.0, 0.0], [0.0, 0.0, 0.3, 0.0, 0.0]]) == 2.0
-    assert all_standing_s(t, [[0.0] * 5, [0.0] * 5]) == 4.0
-    assert all_standing_s(t, [[0.0, 0.0, 0.0, 0.0, 0.5]]) == 0.0
-    assert all_standing_s([], []) == 0.0
+    from cbtc.sim.recorder import STRANDED_S
+    from cbtc.sim.runs import sim_config
+    from cbtc.sim.simulation import Simulation
+
+    config = sim_config(load_layout("lego_oval"), 4, seed=2, duration_s=2 * STRANDED_S + 5.0)
+    streamed = Simulation(config).run().summary()
+    rec = Simulation(config, keep_samples=True).run()
+    assert rec.summary() == streamed
+    t = np.asarray(rec.t_s)
+    assert streamed["simulated_s"] == round(float(t[-1]), 3)
+    gaps = np.concatenate([np.asarray(g) for g in rec.gap_m])
+    assert streamed["min_gap_m"] == round(float(gaps.min()), 3)
+    following = np.concatenate([np.asarray(g) for g in rec.following_gap_m])
+    assert streamed["mean_following_gap_m"] == round(float(following.mean()), 3)
+    moving = np.flatnonzero(np.any(np.asarray(rec.v_mps) > 0.0, axis=0))
+    assert streamed["all_standing_at_end_s"] == round(float(t[-1] - t[moving[-1]]), 3)
+    length_m = rec.layout.length_m
+    for i, row in enumerate(streamed["trains"]):
+        travelled = np.asarray(rec.travelled_m[i])
+        assert row["distance_m"] == round(float(travelled[-1]), 3)
+        assert row["laps"] == int(travelled[-1] // length_m)
+        assert row["mean_gap_m"] == round(float(np.mean(rec.gap_m[i])), 3)
+        err = np.asarray(rec.est_s_m[i]) - np.asarray(rec.head_s_m[i])
+        err = (err + length_m / 2) % length_m - length_m / 2
+        err = err[np.isfinite(err)]
+        assert row["estimation_rmse_m"] == round(float(np.sqrt(np.mean(err ** 2))), 4)
+        assert row["estimation_max_error_m"] == round(float(np.max(np.abs(err))), 4)
+    with pytest.raises(ValueError, match="keep_samples=True"):
+        _ = Simulation(config).recorder.gap_m
 
 
 def test_too_many_trains_is_a_clear_error(capsys):

@@ -1,4 +1,4 @@
-"""`cbtc bench latency|sim|fusion|controller|startup`: report -> command round trips through a real MQTT broker and the
+"""`cbtc bench latency|sim|fusion|controller|memory|startup`: report -> command round trips through a real MQTT broker and the
 controller's compute time (experiments/latency.py says what each figure measures); simulation speed, the filter's
 update time and start-up, each beside its reference (experiments/speed.py)."""
 
@@ -13,6 +13,7 @@ EXAMPLES = (
     "cbtc bench sim --layout lego_oval --trains 4 --duration 10",
     "cbtc bench fusion --trains 5 --steps 10",
     "cbtc bench controller --trains 4 --duration 5",
+    "cbtc bench memory --trains 2 --duration 20",
     "cbtc bench startup --runs 1",
 )
 
@@ -61,6 +62,12 @@ def register(sub):
                      help="simulated seconds of reports replayed (default 10)")
     ctl.add_argument("--seed", type=arg_types.seed, default=0)
     ctl.set_defaults(func=run_controller)
+    mem = _speed_parser(bench_sub, "memory", "a simulation's memory growth per simulated hour, beside keeping samples")
+    mem.add_argument("--trains", type=arg_types.train_count, default=6, help="trains on lego_oval (default 6)")
+    mem.add_argument("--duration", type=arg_types.seconds, default=600.0,
+                     help="simulated seconds (default 600; 3600 for the hour itself)")
+    mem.add_argument("--seed", type=arg_types.seed, default=0)
+    mem.set_defaults(func=run_memory)
     start = _speed_parser(bench_sub, "startup", "wall time and memory of commands that do little, beside python")
     start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")
     start.set_defaults(func=run_startup)
@@ -131,6 +138,20 @@ def run_controller(args):
     print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("reports", "reports"),
                               ("commands", "commands"), ("zone_us_per_report", "zone us/report"),
                               ("decode_us_per_report", "decode us/report"), ("zone_over_decode", "ratio")]))
+    return 0
+
+
+def run_memory(args):
+    from cbtc.experiments import speed
+    if args.trains > 11:
+        raise ConfigError(f"bench memory: --trains {args.trains}: lego_oval holds up to 11 trains")
+    row = speed.memory_growth(args.trains, args.duration, args.seed)
+    if args.json:
+        print_json({"machine": _machine(), "memory": row})
+        return 0
+    print(f"memory, {row['trains']} trains on {row['layout']} for {row['simulated_s']:g} simulated s: resident "
+          f"{row['warm_mib']} MiB after a tenth, {row['end_mib']} MiB at the end: {row['growth_mib_per_hour']} MiB a "
+          f"simulated hour (keeping every sample: {row['reference_growth_mib_per_hour']} MiB an hour)")
     return 0
 
 

@@ -50,7 +50,7 @@ def run_scenario_and_report(config, title, args) -> int:
     from cbtc.sim.simulation import Simulation
 
     started = time.perf_counter()
-    sim = Simulation(config)
+    sim = Simulation(config, keep_samples=bool(args.plot))   # samples only for the picture
     recording = ReportRecording(args.record) if getattr(args, "record", None) else None
     if recording is not None:
         sim.record_reports(recording)

@@ -47,7 +47,7 @@ def run(args):
         for spec in config.trains:
             spec.profile = spec.profile.with_changes(ips_sigma_m=args.ips_sigma)
     started = time.perf_counter()
-    recorder = Simulation(config, keep_reports=True).run()
+    recorder = Simulation(config, keep_reports=True, keep_samples=True).run()
     rows, traces = fusion_table(layout, records_from_recorder(recorder))
     checks = paper_ordering_holds(rows)
     wall_s = time.perf_counter() - started

@@ -43,13 +43,13 @@ def run_guard_case(layout, seed, guard, duration_s=60.0):
     sim = faulty_leader_simulation(layout, seed, guard, duration_s)
     recorder = sim.run()
     follower = sim.trains[1]
-    gaps = recorder.gap_m[1]
+    summary = recorder.summary()
     return {"seed": seed, "guard": guard, "collisions": sum(recorder.collisions),
             "follower_collisions": recorder.collisions[1],
-            "min_gap_m": round(min(gaps), 3) if gaps else None,
+            "min_gap_m": summary["trains"][1]["min_gap_m"],
             "guard_trips": follower.obu.guard_trips,
             "picture_alarms": sim.zc.trains[follower.train_id].gap_alarms,
-            "simulated_s": round(recorder.t_s[-1], 2) if recorder.t_s else 0.0}
+            "simulated_s": round(summary["simulated_s"], 2)}
 
 
 def guard_comparison(seeds, layout_name="itb_square", duration_s=60.0):

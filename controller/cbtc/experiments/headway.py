@@ -24,7 +24,7 @@ def followers(recorder):
     """Indices of the trains that followed: those the train ahead limited at some time in the run (train B of the
     paper scenario); every train if none did."""
     n = len(recorder.sim.trains)
-    return [i for i in range(n) if any(recorder.constrained[i])] or list(range(n))
+    return [i for i in range(n) if recorder.ever_constrained[i]] or list(range(n))
 
 
 def system_figures(recorder):
@@ -70,7 +70,7 @@ def run_systems(base: ScenarioConfig, blocks=None, code_ber=0.0):
         options = {}
         if policy == "fixed_block":
             options = {"blocks": blocks or base.policy_options.get("blocks"), "code_ber": code_ber}
-        sim = Simulation(replace(base, policy=policy, policy_options=options))
+        sim = Simulation(replace(base, policy=policy, policy_options=options), keep_samples=True)
         if policy == "fixed_block":
             sim.policy.track_circuits = _truth_spans(sim)
         recorders[policy] = sim.run()
@@ -198,7 +198,7 @@ def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf", base: ScenarioC
     base = base or paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, estimator=estimator)
     rows = []
     for count in counts:
-        sim = Simulation(replace(base, policy="fixed_block", policy_options={"blocks": int(count)}))
+        sim = Simulation(replace(base, policy="fixed_block", policy_options={"blocks": int(count)}), keep_samples=True)
         sim.policy.track_circuits = _truth_spans(sim)
         figures = system_figures(sim.run())
         figures["blocks"] = int(count)

@@ -7,10 +7,13 @@
   UnscentedKalmanFilter on the same inputs, over a fleet, with the largest difference between the two.
 - **controller**: wall time a zone takes per report (its cycles included), replaying a simulated run's reports, beside
   the same reports only decoded and authenticated.
+- **memory**: how a simulation's resident memory grows per simulated hour (6 trains), beside the same run keeping
+  every sample, each in a fresh process.
 - **startup**: wall time and peak resident memory of commands that do little (`cbtc --help`, a command's `--help`)
   beside `python -c pass`.
 """
 
+import json
 import subprocess
 import sys
 import time
@@ -158,6 +161,55 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
     return {"trains": n_trains, "layout": layout.name, "reports": len(heard), "commands": client.published,
             "zone_us_per_report": round(1e6 * zone_s / n, 1), "decode_us_per_report": round(1e6 * wire_s / n, 1),
             "zone_over_decode": round(zone_s / wire_s, 2) if wire_s else None}
+
+
+def _resident_mib() -> float:
+    """This process's resident memory now (MiB), from /proc (Linux); its peak where /proc is missing."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    import resource
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def memory_run(n_trains: int, duration_s: float, seed: int, keep_samples: bool) -> dict:
+    """Resident memory (MiB) of `n_trains` on lego_oval after a tenth of `duration_s` simulated seconds (imports,
+    filters, the broker's queues all built) and at the end, in this process."""
+    import gc
+
+    from cbtc.layout_files import load_layout
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import queue_scenario
+
+    config = queue_scenario(load_layout("lego_oval"), n_trains, seed=seed, duration_s=duration_s)
+    sim = Simulation(config, keep_samples=keep_samples)
+    warm_s = duration_s / 10.0
+    sim.scheduler.run_until(warm_s)
+    gc.collect()
+    warm_mib = _resident_mib()
+    summary = sim.run().summary()
+    gc.collect()
+    end_mib = _resident_mib()
+    return {"warm_mib": round(warm_mib, 1), "end_mib": round(end_mib, 1),
+            "growth_mib_per_hour": round((end_mib - warm_mib) / (summary["simulated_s"] - warm_s) * 3600.0, 1),
+            "collisions": summary["collisions"], "authority_overruns": summary["authority_overruns"]}
+
+
+def memory_growth(n_trains: int = 6, duration_s: float = 600.0, seed: int = 0) -> dict:
+    """How the resident memory of a simulation grows per simulated hour: the run as `cbtc sim` makes it (running
+    statistics) beside the same run keeping every sample (what a plot asks for), each in a fresh process."""
+    rows = {}
+    for name, keep in (("statistics", False), ("every_sample", True)):
+        code = ("import json, sys\nfrom cbtc.experiments.speed import memory_run\n"
+                f"print(json.dumps(memory_run({n_trains}, {duration_s!r}, {seed}, {keep})))")
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        rows[name] = json.loads(out.stdout)
+    return {"trains": n_trains, "layout": "lego_oval", "simulated_s": duration_s, **rows["statistics"],
+            "reference_growth_mib_per_hour": rows["every_sample"]["growth_mib_per_hour"]}
 
 
 STARTUP_COMMANDS = (("python -c pass", [sys.executable, "-c", "pass"]),

@@ -10,8 +10,7 @@ stranded when it stood still over the run's last STRANDED_S with more than its f
 
 import math
 from array import array
-
-import numpy as np
+from collections import deque
 
 from cbtc.authority.rules import following_reach_m
 from cbtc.protocol import wire
@@ -22,24 +21,36 @@ from cbtc.zone.config import train_key
 STRANDED_S = 20.0
 
 
-class Recorder:
-    """Truth, reports and authority limits of a run, and the figures computed from them."""
+_SAMPLES = ("travelled_m", "head_s_m", "v_mps", "gap_m", "est_s_m", "est_sigma_m", "following_gap_m")
 
-    def __init__(self, sim, keep_reports: bool = False):
+
+class Recorder:
+    """Truth, reports and authority limits of a run, and the figures computed from them.
+
+    The figures are kept as running statistics (sums, extremes, lap crossings, the last STRANDED_S of travel), so a
+    run of any length holds bounded memory. The samples themselves (every train's travel, position, speed, gap and
+    estimate at every loop tick) only when asked (`keep_samples`: plots, the comparison's headway, the fusion table).
+    """
+
+    def __init__(self, sim, keep_reports: bool = False, keep_samples: bool = False):
         self.sim = sim
         self.keep_reports = keep_reports   # every report heard, for the fusion table (memory grows with the run)
+        self.keep_samples = keep_samples   # every sample (memory grows with the run)
         self.layout = sim.config.layout
         n = len(sim.trains)
         # samples as packed machine numbers (8 bytes a float, 1 a flag), not lists of Python objects
-        self.t_s = array("d")
-        self.travelled_m = [array("d") for _ in range(n)]
-        self.head_s_m = [array("d") for _ in range(n)]
-        self.v_mps = [array("d") for _ in range(n)]
-        self.gap_m = [array("d") for _ in range(n)]       # true gap to the train ahead (head to its tail)
-        self.est_s_m = [array("d") for _ in range(n)]
-        self.est_sigma_m = [array("d") for _ in range(n)]
-        self.constrained = [array("b") for _ in range(n)]  # 1: the train ahead limits this train's speed now
-        self.following_gap_m = [array("d") for _ in range(n)]  # true gap at the samples where it is so limited
+        self._t_s = array("d")
+        self._samples = {name: [array("d") for _ in range(n)] for name in _SAMPLES}
+        self._samples["constrained"] = [array("b") for _ in range(n)]  # 1: the train ahead limits its speed now
+        # running statistics, whatever is kept
+        self._t_first_s = self._t_last_s = None
+        self._moving_last_s = None             # the newest sample at which some train moved
+        self._crossings = [[] for _ in range(n)]   # times its travel passed each whole lap
+        self._gap = [[0, 0.0, math.inf] for _ in range(n)]    # true gap to the train ahead: count, sum, least
+        self._following = [[0, 0.0] for _ in range(n)]       # ... while the train ahead limits it: count, sum
+        self._error = [[0, 0.0, 0.0] for _ in range(n)]      # estimate less truth: count, sum of squares, worst
+        self._window = [deque() for _ in range(n)]            # (t_s, travelled_m) over the last STRANDED_S
+        self._ever_constrained = [False] * n
         self.collisions = [0] * n
         self.overruns = [0] * n
         self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or span
@@ -54,6 +65,27 @@ class Recorder:
         self._sniffer = sim.broker.connect("recorder")
         if keep_reports:
             self._sniffer.subscribe(wire.REPORT_FILTER, self._on_report)
+
+    def _kept(self, name):
+        if not self.keep_samples:
+            raise ValueError(f"this run kept no samples ({name}): build it with Simulation(config, keep_samples=True)")
+        return self._t_s if name == "t_s" else self._samples[name]
+
+    t_s = property(lambda self: self._kept("t_s"), doc="Sample times (s), when samples are kept.")
+    travelled_m = property(lambda self: self._kept("travelled_m"), doc="Per train, distance travelled (m).")
+    head_s_m = property(lambda self: self._kept("head_s_m"), doc="Per train, true head position (m).")
+    v_mps = property(lambda self: self._kept("v_mps"), doc="Per train, true speed (m/s).")
+    gap_m = property(lambda self: self._kept("gap_m"), doc="Per train, true gap to the train ahead (head to tail, m).")
+    est_s_m = property(lambda self: self._kept("est_s_m"), doc="Per train, the zone's estimate (m; nan: unlocated).")
+    est_sigma_m = property(lambda self: self._kept("est_sigma_m"), doc="Per train, its 1-sigma (m).")
+    constrained = property(lambda self: self._kept("constrained"), doc="Per train, 1 where the train ahead limits it.")
+    following_gap_m = property(lambda self: self._kept("following_gap_m"),
+                               doc="Per train, the true gap at the samples where the train ahead limits it (m).")
+
+    @property
+    def ever_constrained(self):
+        """Per train, whether the train ahead ever limited its speed."""
+        return list(self._ever_constrained)
 
     def _on_report(self, topic, payload):
         try:
@@ -84,33 +116,53 @@ class Recorder:
     def sample(self, now_s):
         layout = self.layout
         trains = self.sim.trains
-        self.t_s.append(now_s)
+        keep = self.keep_samples
+        first = self._t_first_s is None   # a train that starts inside a zone has not entered it
+        if first:
+            self._t_first_s = now_s
+        self._t_last_s = now_s
+        if keep:
+            self._t_s.append(now_s)
         heads = [t.head_s for t in trains]
         spans = [(t.train_id, t.head_s, t.tail_s) for t in trains]
         ahead = train_ahead(layout, heads)
-        first = len(self.t_s) == 1   # a train that starts inside a zone has not entered it
+        lap_m = layout.length_m if layout.closed else None
+        any_moving = False
         for i, train in enumerate(trains):
-            moved = train.travelled_m > self._travelled_before[i] + 1e-4   # forward since the last sample
-            self._travelled_before[i] = train.travelled_m
+            travelled_m = train.travelled_m
+            moved = travelled_m > self._travelled_before[i] + 1e-4   # forward since the last sample
+            self._travelled_before[i] = travelled_m
+            any_moving = any_moving or train.v_mps > 0.0
             self._granted(i, train, now_s, heads, ahead)
-            self.travelled_m[i].append(train.travelled_m)
-            self.head_s_m[i].append(heads[i])
-            self.v_mps[i].append(train.v_mps)
+            crossings = self._crossings[i]
+            if lap_m is not None and travelled_m >= lap_m * (len(crossings) + 1):
+                crossings.append(now_s)
+            window = self._window[i]
+            window.append((now_s, travelled_m))
+            while len(window) > 1 and now_s - window[1][0] >= STRANDED_S:
+                window.popleft()   # keeps the newest sample at least STRANDED_S old
+            gap_m = None
             if i in ahead:
                 j = ahead[i]
-                gap = layout.ahead_m(heads[i], trains[j].tail_s)
-                inside = head_inside(layout, heads[i], trains[j].tail_s, trains[j].profile.length_m)
+                tail_s = trains[j].tail_s
+                inside = head_inside(layout, heads[i], tail_s, trains[j].profile.length_m)
                 if inside and not self._colliding[i] and not first:
                     if moved:
                         self.collisions[i] += 1
                     else:
                         self.rolled_onto[i] += 1
                 self._colliding[i] = inside
-                self.gap_m[i].append(-layout.ahead_m(trains[j].tail_s, heads[i]) if inside else gap)
+                gap_m = -layout.ahead_m(tail_s, heads[i]) if inside else layout.ahead_m(heads[i], tail_s)
+                stats = self._gap[i]
+                stats[0] += 1
+                stats[1] += gap_m
+                stats[2] = min(stats[2], gap_m)
             state = self.sim.zc.trains[train.train_id]
-            self.constrained[i].append(state.safe_m is not None and state.safe_m < following_reach_m(train.profile))
-            if i in ahead and self.constrained[i][-1]:
-                self.following_gap_m[i].append(self.gap_m[i][-1])
+            constrained = state.safe_m is not None and state.safe_m < following_reach_m(train.profile)
+            self._ever_constrained[i] = self._ever_constrained[i] or constrained
+            if gap_m is not None and constrained:
+                self._following[i][0] += 1
+                self._following[i][1] += gap_m
             over = protected_m(self.sim.policy, layout, train.train_id, spans) < -0.001
             if over and not self._overrun[i] and not first:
                 if moved:
@@ -121,8 +173,26 @@ class Recorder:
             est = None
             if state.report is not None and state.estimator.localized:
                 est = state.estimator.estimate(now_s)
-            self.est_s_m[i].append(math.nan if est is None else est.s_m)
-            self.est_sigma_m[i].append(math.nan if est is None else est.sigma_s_m)
+            if est is not None and est.s_m == est.s_m:
+                err_m = circular_offset_m(est.s_m, heads[i], layout.loop_length_m)
+                stats = self._error[i]
+                stats[0] += 1
+                stats[1] += err_m * err_m
+                stats[2] = max(stats[2], abs(err_m))
+            if keep:
+                samples = self._samples
+                samples["travelled_m"][i].append(travelled_m)
+                samples["head_s_m"][i].append(heads[i])
+                samples["v_mps"][i].append(train.v_mps)
+                if gap_m is not None:
+                    samples["gap_m"][i].append(gap_m)
+                samples["constrained"][i].append(constrained)
+                if gap_m is not None and constrained:
+                    samples["following_gap_m"][i].append(gap_m)
+                samples["est_s_m"][i].append(math.nan if est is None else est.s_m)
+                samples["est_sigma_m"][i].append(math.nan if est is None else est.sigma_s_m)
+        if any_moving:
+            self._moving_last_s = now_s
 
     def _granted(self, i, train, now_s, heads, ahead):
         """True room ahead of train i now, and how far the authority its board holds reaches beyond it."""
@@ -148,61 +218,50 @@ class Recorder:
         """Train i stood still over the last STRANDED_S of a run at least twice that long, with more than its following
         reach of true room ahead, and not because the world stopped it dead."""
         train = self.sim.trains[i]
-        if not self.t_s or self.t_s[-1] - self.t_s[0] < 2 * STRANDED_S or train.stopped_dead:
+        if self._t_first_s is None or self._t_last_s - self._t_first_s < 2 * STRANDED_S or train.stopped_dead:
             return False
-        k = next(k for k in range(len(self.t_s) - 1, -1, -1) if self.t_s[-1] - self.t_s[k] >= STRANDED_S)
-        moved_m = max(self.travelled_m[i][k:]) - min(self.travelled_m[i][k:])
+        travel = [d for _t, d in self._window[i]]
+        moved_m = max(travel) - min(travel)
         return moved_m < 0.01 and self.room_m[i] > following_reach_m(train.profile) + self.sim.config.params.margin_m
 
     # --- figures --------------------------------------------------------------------------------------------------
 
     def lap_times(self, i):
         """Times (s) of each completed lap of train i, counted at its start position."""
-        if not self.layout.closed:
-            return []
-        length = self.layout.length_m
-        times, crossings = [], []
-        next_mark = length
-        for t_s, d in zip(self.t_s, self.travelled_m[i]):
-            if d >= next_mark:
-                crossings.append(t_s)
-                next_mark += length
-        last = 0.0
-        for t in crossings:
+        times, last = [], 0.0
+        for t in self._crossings[i]:
             times.append(t - last)
             last = t
         return times
 
     def laps(self, i):
-        if not self.layout.closed or not self.travelled_m[i]:
-            return 0
-        return int(self.travelled_m[i][-1] // self.layout.length_m)
+        return len(self._crossings[i])
+
+    def distance_m(self, i):
+        """How far train i has travelled (m) at the newest sample."""
+        return self._travelled_before[i]
 
     def estimation_error(self, i):
         """RMSE and max of the controller's estimate against truth along the track (m), while located."""
-        errs = []
-        for s_est, s_true in zip(self.est_s_m[i], self.head_s_m[i]):
-            if s_est == s_est:
-                errs.append(circular_offset_m(s_est, s_true, self.layout.loop_length_m))
-        if not errs:
+        count, squares, worst = self._error[i]
+        if not count:
             return None
-        arr = np.asarray(errs)
-        return {"rmse_m": float(np.sqrt(np.mean(arr ** 2))), "max_abs_m": float(np.max(np.abs(arr)))}
+        return {"rmse_m": math.sqrt(squares / count), "max_abs_m": worst}
 
     def summary(self):
         trains = []
         for i, train in enumerate(self.sim.trains):
             laps = self.lap_times(i)
-            gaps = np.asarray(self.gap_m[i]) if self.gap_m[i] else None
+            gap_n, gap_sum, gap_min = self._gap[i]
             state = self.sim.zc.trains[train.train_id]
             err = self.estimation_error(i)
             trains.append({
                 "train": train.train_id,
                 "laps": len(laps),
-                "mean_lap_s": round(float(np.mean(laps)), 3) if laps else None,
-                "distance_m": round(self.travelled_m[i][-1], 3) if self.travelled_m[i] else 0.0,
-                "mean_gap_m": None if gaps is None else round(float(np.mean(gaps)), 3),
-                "min_gap_m": None if gaps is None else round(float(np.min(gaps)), 3),
+                "mean_lap_s": round(sum(laps) / len(laps), 3) if laps else None,
+                "distance_m": round(self._travelled_before[i], 3) if self._t_first_s is not None else 0.0,
+                "mean_gap_m": round(gap_sum / gap_n, 3) if gap_n else None,
+                "min_gap_m": round(gap_min, 3) if gap_n else None,
                 "collisions": self.collisions[i],
                 "authority_overruns": self.overruns[i],
                 "rolled_onto": self.rolled_onto[i],
@@ -216,28 +275,30 @@ class Recorder:
                 "encoder_trips": train.obu.enc_fails,
                 "reports_rejected": state.reports_rejected,
             })
-        gaps = [g for i in range(len(self.sim.trains)) for g in self.gap_m[i]]
-        following = [g for i in range(len(self.sim.trains)) for g in self.following_gap_m[i]]
+        gap_n = sum(g[0] for g in self._gap)
+        follow_n = sum(f[0] for f in self._following)
         laps = [t for i in range(len(self.sim.trains)) for t in self.lap_times(i)]
         beyond = [b for b in self.granted_beyond_m if b > -math.inf]
+        started = self._t_first_s is not None
         return {
             "layout": self.layout.name,
             "policy": self.sim.policy.name,
             "estimator": self.sim.config.estimator,
             "seed": self.sim.config.seed,
-            "simulated_s": round(self.t_s[-1], 3) if self.t_s else 0.0,
+            "simulated_s": round(self._t_last_s, 3) if started else 0.0,
             "trains": trains,
             "collisions": sum(self.collisions),
             "authority_overruns": sum(self.overruns),
             "rolled_onto": sum(self.rolled_onto),
             "granted_beyond_m": _metres(max(beyond)) if beyond else None,
             "stranded": sum(t["stranded"] for t in trains),
-            "mean_following_gap_m": round(float(np.mean(following)), 3) if following else None,
-            "min_gap_m": round(float(np.min(gaps)), 3) if gaps else None,
-            "mean_lap_s": round(float(np.mean(laps)), 3) if laps else None,
+            "mean_following_gap_m": round(sum(f[1] for f in self._following) / follow_n, 3) if follow_n else None,
+            "min_gap_m": round(min(g[2] for g in self._gap), 3) if gap_n else None,
+            "mean_lap_s": round(sum(laps) / len(laps), 3) if laps else None,
             "emergency_trips": sum(t.obu.trips for t in self.sim.trains),
             "encoder_trips": sum(t.obu.enc_fails for t in self.sim.trains),
-            "all_standing_at_end_s": round(all_standing_s(self.t_s, self.v_mps), 3),
+            "all_standing_at_end_s": round(self._t_last_s - (self._t_first_s if self._moving_last_s is None
+                                                              else self._moving_last_s), 3) if started else 0.0,
         }
 
 
@@ -256,12 +317,3 @@ def violations(summary) -> list:
 
 def _metres(value):
     return None if value == -math.inf else round(float(value), 4)
-
-
-def all_standing_s(t_s, v_mps_by_train):
-    """How long (s) every train had been standing still at the last sample (sample times `t_s`, speeds per train):
-    long means gridlock."""
-    for k in range(len(t_s) - 1, -1, -1):
-        if any(v[k] > 0.0 for v in v_mps_by_train):
-            return t_s[-1] - t_s[k]
-    return t_s[-1] - t_s[0] if t_s else 0.0

@@ -21,7 +21,7 @@ from cbtc.zone.factory import build_zone
 class Simulation:
     """Everything of one run, wired and ready to `run()`; the parts are public for tests and fault injection."""
 
-    def __init__(self, config: ScenarioConfig, keep_reports: bool = False):
+    def __init__(self, config: ScenarioConfig, keep_reports: bool = False, keep_samples: bool = False):
         self.config = config
         layout = config.layout
         ids = [t.train_id for t in config.trains]
@@ -48,7 +48,7 @@ class Simulation:
                                             ranging=self._ranging(index)))
         if config.policy == "fixed_block":
             self._check_not_gridlocked()
-        self.recorder = Recorder(self, keep_reports)
+        self.recorder = Recorder(self, keep_reports, keep_samples)
         self.zc.start()
         for train in self.trains:
             train.client.publish(wire.topic_status(train.train_id), b"online", retain=True)
