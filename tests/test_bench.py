@@ -1,5 +1,6 @@
-"""`cbtc bench sim|fusion|controller|memory|startup`: each figure comes with its reference from the same run (no timing is asserted:
-the figures are for people; the tests check what is measured and that ours equals the reference where it must)."""
+"""`cbtc bench sim|fusion|controller|memory|startup`: each figure comes with its reference from the same run (no
+timing is asserted: the figures are for people; the tests check what is measured and that ours equals the reference
+where it must)."""
 
 import json
 

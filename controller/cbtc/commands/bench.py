@@ -1,6 +1,6 @@
-"""`cbtc bench latency|sim|fusion|controller|memory|startup`: report -> command round trips through a real MQTT broker and the
-controller's compute time (experiments/latency.py says what each figure measures); simulation speed, the filter's
-update time and start-up, each beside its reference (experiments/speed.py)."""
+"""`cbtc bench latency|sim|fusion|controller|memory|startup`: report -> command round trips through a real MQTT
+broker and the controller's compute time (experiments/latency.py says what each figure measures); simulation speed,
+the filter's update time, memory growth and start-up, each beside its reference (experiments/speed.py)."""
 
 import argparse
 
