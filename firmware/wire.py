@@ -125,7 +125,7 @@ def hmac_sha256(key, *parts):
         for i in range(64):
             pads[i] ^= 0x36
             pads[64 + i] ^= 0x5C
-        if len(_PADS) >= 16:   # the controller sees one key per train; never let the cache grow without bound
+        if len(_PADS) >= 1024:   # a board has one key, a zone one per train: bounded, and never thrashed by a fleet
             _PADS.clear()
         _PADS[key] = pads = (bytes(pads[:64]), bytes(pads[64:]))
     inner = hashlib.sha256(pads[0])

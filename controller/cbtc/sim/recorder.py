@@ -15,7 +15,7 @@ from collections import deque
 from cbtc.authority.rules import following_reach_m
 from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
-from cbtc.sim.truth import head_inside, protected_m, train_ahead
+from cbtc.sim.truth import head_inside, protected_all_m, train_ahead
 from cbtc.zone.config import train_key
 
 STRANDED_S = 20.0
@@ -126,6 +126,7 @@ class Recorder:
         heads = [t.head_s for t in trains]
         spans = [(t.train_id, t.head_s, t.tail_s) for t in trains]
         ahead = train_ahead(layout, heads)
+        protected = protected_all_m(self.sim.policy, layout, spans)
         lap_m = layout.length_m if layout.closed else None
         any_moving = False
         for i, train in enumerate(trains):
@@ -163,7 +164,7 @@ class Recorder:
             if gap_m is not None and constrained:
                 self._following[i][0] += 1
                 self._following[i][1] += gap_m
-            over = protected_m(self.sim.policy, layout, train.train_id, spans) < -0.001
+            over = protected[i] < -0.001
             if over and not self._overrun[i] and not first:
                 if moved:
                     self.overruns[i] += 1
