@@ -15,6 +15,7 @@ is stale. Reports that fail validation, come from unknown trains or do not move 
 and dropped.
 """
 
+import bisect
 import hashlib
 import logging
 import math
@@ -54,9 +55,11 @@ class TrainSetup:
 class TrainState:
     """The controller's picture of one train."""
 
-    def __init__(self, setup: TrainSetup, estimator):
+    def __init__(self, setup: TrainSetup, estimator, rank: int = 0, on_change=None):
         self.setup = setup
         self.estimator = estimator
+        self.rank = rank             # its place in the zone's list of trains: ties in position go by it
+        self.on_change = on_change   # called with this state when its position may have changed
         self.clock = BoardClock()
         self.report = None           # newest accepted report (dict)
         self.report_recv_s = None
@@ -110,6 +113,8 @@ class TrainState:
         self.estimator = estimator
         self.eoa_mm = None
         self.limit_s = None
+        if self.on_change is not None:
+            self.on_change(self)
 
 
 class ZoneController:
@@ -118,6 +123,13 @@ class ZoneController:
                  event_driven: bool = True, report_budget_hz: float = 400.0):
         if not trains:
             raise ValueError("zone controller: no trains configured")
+        # the located trains in position order, kept up to date from the trains whose position may have changed
+        self._moved = set()       # states with a new report, or located afresh, since the order was last brought up
+        self._order = []          # (s_m, rank, state) of the located trains, sorted
+        self._placed = {}         # state -> its entry in _order
+        self._located = []        # the states of _order
+        self._departing = {}      # train id -> state, trains whose newest authority is a departure
+        self._fast_wanting = {}   # train id -> state, trains asked for fast reports (some may have lapsed)
         self.layout = layout
         self.client = client
         self.now_fn = now_fn
@@ -138,7 +150,8 @@ class ZoneController:
                 raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
             for name in setup.stops:
                 layout.station(name)  # raises LayoutError naming the known stations
-            self.trains[setup.train_id] = TrainState(setup, estimator_factory(layout, setup.profile))
+            self.trains[setup.train_id] = TrainState(setup, estimator_factory(layout, setup.profile),
+                                                     rank=len(self.trains), on_change=self._moved.add)
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.refusals = RefusalLog(log)
@@ -243,6 +256,7 @@ class ZoneController:
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
         state.reports_taken += 1
+        self._moved.add(state)
         if self.report_sink is not None:
             self._record(state, report, recv_s)
         if report.get("rng") is not None:
@@ -293,15 +307,24 @@ class ZoneController:
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
     def located(self):
-        """Train states with a finite position estimate, ordered by head position along the track."""
-        found = []
-        for st in self.trains.values():
-            if st.report is not None and st.estimator.localized:
-                s_m = self._position_m(st)
-                if s_m is not None:
-                    found.append((s_m, st))
-        found.sort(key=lambda pair: pair[0])
-        return [st for _s, st in found]
+        """Train states with a finite position estimate, ordered by head position along the track (ties in the zone's
+        order). Kept as an index: only the trains whose position may have changed since (a report taken, located
+        afresh) are placed again, so a report costs the same whatever the fleet. The list is shared: read it only."""
+        if self._moved:
+            moved = sorted(self._moved, key=lambda st: st.rank)
+            self._moved.clear()
+            for st in moved:
+                old = self._placed.pop(st, None)
+                if old is not None:
+                    del self._order[bisect.bisect_left(self._order, old)]
+                if st.report is not None and st.estimator.localized:
+                    s_m = self._position_m(st)   # may locate it afresh (its filter failed): then None
+                    if s_m is not None and st not in self._moved:
+                        entry = (s_m, st.rank, st)
+                        bisect.insort(self._order, entry)
+                        self._placed[st] = entry
+            self._located = [entry[2] for entry in self._order]
+        return self._located
 
     def _position_m(self, state):
         """The train's head position (m) at its newest report, or None; a filter that fails or turns non-finite
@@ -364,6 +387,7 @@ class ZoneController:
             if leader is not None and safe_m < following_reach_m(state.setup.profile):
                 # this train is held by the one ahead: ask that one for fast reports, for a while
                 leader.fast_until_s = now_s + self.params.fast_hold_s
+                self._fast_wanting[leader.train_id] = leader
                 leader.fast_need_m = safe_m
         else:
             safe_m = None
@@ -380,8 +404,8 @@ class ZoneController:
 
     def _situation(self, state, leader, now_s):
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
-        departing = tuple(other.setup.profile for other in self.trains.values()
-                          if other is not state and other.mode == "departure")
+        departing = tuple(other.setup.profile for other in sorted(self._departing.values(), key=lambda st: st.rank)
+                          if other is not state) if self._departing else ()
         return Situation(self.layout, now_s, self.cycle_s, self._picture(state),
                          None if leader is None else self._picture(leader), state.rng_gap, self.ranging_sigma_m,
                          self.use_measured_gap, departing, self._spans() if self.policy.needs_spans else ())
@@ -406,6 +430,10 @@ class ZoneController:
         """Keep what `state`'s new authority rests on, and raise the "picture disagrees" alarm when it does."""
         state.authority = auth
         state.mode = auth.mode
+        if auth.mode == "departure":
+            self._departing[state.train_id] = state
+        else:
+            self._departing.pop(state.train_id, None)
         if log.isEnabledFor(logging.DEBUG):
             log.debug("train %s: authority %.3f m (%s), limited by %s", state.train_id, auth.distance_m, auth.mode,
                       auth.reason)
@@ -555,7 +583,10 @@ class ZoneController:
         whose followers have the least authority left."""
         if now_s >= state.fast_until_s or not self.policy.fast_reports:
             return False
-        wanting = [st for st in self.trains.values() if now_s < st.fast_until_s]
+        lapsed = [train_id for train_id, st in self._fast_wanting.items() if now_s >= st.fast_until_s]
+        for train_id in lapsed:
+            del self._fast_wanting[train_id]
+        wanting = list(self._fast_wanting.values())
         if len(wanting) <= self.fast_slots:
             return True
         # its place among them, least authority left first (ties by id): one pass, no sort per command
