@@ -101,8 +101,7 @@ def test_stamps_outside_their_report_are_dropped_and_odometer_jumps_measured():
 def test_the_zones_order_of_trains_is_always_what_sorting_them_afresh_gives():
     """The zone keeps its located trains in position order as an index, placing again only the trains with news:
     through a run with a controller restart, a board's reboot, an encoder burst (the train is located afresh) and lost
-    reports, at
-    every tick it equals the order a full sort of every train's position gives."""
+    reports, at every tick it equals the order a full sort of every train's position gives."""
     from cbtc.sim.runs import sim_config
 
     config = sim_config(load_layout("lego_oval"), 5, seed=3, duration_s=40.0,
