@@ -1,4 +1,4 @@
-"""`cbtc bench latency|sim|fusion|controller|memory|startup`: report -> command round trips through a real MQTT
+"""`cbtc bench latency|sim|fusion|controller|memory|startup|all`: report -> command round trips through a real MQTT
 broker and the controller's compute time (experiments/latency.py says what each figure measures); simulation speed,
 the filter's update time, memory growth and start-up, each beside its reference (experiments/speed.py)."""
 
@@ -14,6 +14,7 @@ EXAMPLES = (
     "cbtc bench fusion --trains 5 --steps 10",
     "cbtc bench controller --trains 4 --duration 5",
     "cbtc bench memory --trains 2 --duration 20",
+    "cbtc bench all --duration 2 --controller-duration 1 --memory-duration 10 --json",
     "cbtc bench startup --runs 1",
 )
 
@@ -68,6 +69,15 @@ def register(sub):
                      help="simulated seconds (default 600; 3600 for the hour itself)")
     mem.add_argument("--seed", type=arg_types.seed, default=0)
     mem.set_defaults(func=run_memory)
+    every = _speed_parser(bench_sub, "all", "sim, fusion, controller, memory and startup in one run, one report")
+    every.add_argument("--duration", type=arg_types.seconds, default=30.0,
+                       help="simulated seconds of each sim case (default 30)")
+    every.add_argument("--controller-duration", type=arg_types.seconds, default=10.0,
+                       help="simulated seconds of reports the controller replays (default 10)")
+    every.add_argument("--memory-duration", type=arg_types.seconds, default=3600.0,
+                       help="simulated seconds of the memory run (default 3600: an hour)")
+    every.add_argument("--seed", type=arg_types.seed, default=0)
+    every.set_defaults(func=run_all)
     start = _speed_parser(bench_sub, "startup", "wall time and memory of commands that do little, beside python")
     start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")
     start.set_defaults(func=run_startup)
@@ -106,6 +116,11 @@ def run_sim(args):
     if args.json:
         print_json({"machine": _machine(), "sim": rows})
         return 0
+    _print_sim(rows)
+    return 0
+
+
+def _print_sim(rows):
     print(f"simulation speed ({_machine()['cores']} cores): simulated seconds per wall second, the full run beside the "
           f"same world with a do-nothing controller")
     print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("simulated_s", "simulated s"),
@@ -113,7 +128,6 @@ def run_sim(args):
                               ("reference_real_time_factor", "x, no controller"),
                               ("controller_share", "controller share"), ("collisions", "collisions"),
                               ("authority_overruns", "overruns"), ("emergency_trips", "trips")]))
-    return 0
 
 
 def run_fusion(args):
@@ -122,10 +136,14 @@ def run_fusion(args):
     if args.json:
         print_json({"machine": _machine(), "fusion": row})
         return 0
+    _print_fusion(row)
+    return 0
+
+
+def _print_fusion(row):
     print(f"fusion, {row['trains']} filters x {row['steps']} updates (predict 50 ms, odometer, IPS fix): ours "
           f"{row['ours_us']} us a train-update, filterpy {row['filterpy_us']} us: {row['speedup']}x; largest "
           f"difference {row['max_state_difference']:.1e} (state), {row['max_covariance_difference']:.1e} (covariance)")
-    return 0
 
 
 def run_controller(args):
@@ -134,11 +152,15 @@ def run_controller(args):
     if args.json:
         print_json({"machine": _machine(), "controller": rows})
         return 0
+    _print_controller(rows)
+    return 0
+
+
+def _print_controller(rows):
     print("zone controller, replaying a simulated run's reports (its cycles included), beside decoding them alone:")
     print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("reports", "reports"),
                               ("commands", "commands"), ("zone_us_per_report", "zone us/report"),
                               ("decode_us_per_report", "decode us/report"), ("zone_over_decode", "ratio")]))
-    return 0
 
 
 def run_memory(args):
@@ -149,9 +171,33 @@ def run_memory(args):
     if args.json:
         print_json({"machine": _machine(), "memory": row})
         return 0
+    _print_memory(row)
+    return 0
+
+
+def _print_memory(row):
     print(f"memory, {row['trains']} trains on {row['layout']} for {row['simulated_s']:g} simulated s: resident "
           f"{row['warm_mib']} MiB after a tenth, {row['end_mib']} MiB at the end: {row['growth_mib_per_hour']} MiB a "
           f"simulated hour (keeping every sample: {row['reference_growth_mib_per_hour']} MiB an hour)")
+
+
+def run_all(args):
+    """Every figure the simulation-speed work is judged by, measured one after the other in one process's run."""
+    from cbtc.experiments import speed
+    out = {"machine": _machine(),
+           "sim": [speed.sim_speed(layout, n, args.duration, args.seed) for layout, n in speed.SIM_CASES],
+           "fusion": speed.fusion_speed(50, 40, args.seed),
+           "controller": [speed.controller_speed(n, args.controller_duration, args.seed) for n in (11, 50)],
+           "memory": speed.memory_growth(6, args.memory_duration, args.seed),
+           "startup": speed.startup(5)}
+    if args.json:
+        print_json(out)
+        return 0
+    _print_sim(out["sim"])
+    _print_fusion(out["fusion"])
+    _print_controller(out["controller"])
+    _print_memory(out["memory"])
+    _print_startup(out["startup"], 5)
     return 0
 
 
@@ -161,10 +207,14 @@ def run_startup(args):
     if args.json:
         print_json({"machine": _machine(), "startup": rows})
         return 0
-    print(f"start-up, median of {args.runs} runs each, peak resident memory:")
+    _print_startup(rows, args.runs)
+    return 0
+
+
+def _print_startup(rows, runs):
+    print(f"start-up, median of {runs} runs each, peak resident memory:")
     print(format_table(rows, [("command", "command"), ("wall_s", "wall s"), ("resident_mib", "resident MiB"),
                               ("vs_python", "x python -c pass")]))
-    return 0
 
 
 def _print(f):
