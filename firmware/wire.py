@@ -110,12 +110,25 @@ def wrap_add(a, b):
 
 # --- authentication -------------------------------------------------------------------------------------------
 
+try:
+    from hmac import digest as _C_HMAC  # CPython: the C implementation; not on a board
+except ImportError:
+    _C_HMAC = None
+
 _PADS = {}   # key -> its two padded blocks (inner, outer): made once per key, a train's key never changes
 
 
 def hmac_sha256(key, *parts):
-    """HMAC-SHA256 (RFC 2104) with `key` (bytes) of the concatenated `parts` (bytes) from hashlib alone: MicroPython
-    has no hmac module. The key's padded blocks are computed once per key, so a message costs two SHA-256 runs."""
+    """HMAC-SHA256 (RFC 2104) with `key` (bytes) of the concatenated `parts` (bytes): CPython's own (in C) where
+    there is one, else hmac_sha256_hashlib."""
+    if _C_HMAC is not None:
+        return _C_HMAC(key, b"".join(parts), "sha256")
+    return hmac_sha256_hashlib(key, *parts)
+
+
+def hmac_sha256_hashlib(key, *parts):
+    """HMAC-SHA256 from hashlib alone: MicroPython has no hmac module. The key's padded blocks are computed once per
+    key, so a message costs two SHA-256 runs."""
     pads = _PADS.get(key)
     if pads is None:
         block = hashlib.sha256(key).digest() if len(key) > 64 else key

@@ -95,11 +95,21 @@ class TrainState:
         self.failures = 0            # exceptions in this train's handling: located afresh
         self.failures_said = set()   # the exception types already logged for it
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
-        self.position_memo = None    # (estimator, reports_taken, s_m): the head position last worked out
+        self.estimate_memo = None    # (estimator, reports_taken, Estimate): the estimate at its newest report
 
     @property
     def train_id(self):
         return self.setup.train_id
+
+    def newest_estimate(self):
+        """The estimator's estimate at the newest report's sample time (None while unlocated), asked of the estimator
+        once per report: it changes only with a report taken or a new estimator."""
+        memo = self.estimate_memo
+        if memo is not None and memo[0] is self.estimator and memo[1] == self.reports_taken:
+            return memo[2]
+        est = self.estimator.estimate(self.report_t_s)
+        self.estimate_memo = (self.estimator, self.reports_taken, est)
+        return est
 
     def restart(self, estimator):
         """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
@@ -329,15 +339,10 @@ class ZoneController:
     def _position_m(self, state):
         """The train's head position (m) at its newest report, or None; a filter that fails or turns non-finite
         makes its train be located afresh."""
-        memo = state.position_memo
-        if memo is not None and memo[0] is state.estimator and memo[1] == state.reports_taken:
-            return memo[2]   # no report since: the same estimator gives the same position (every report asks)
         try:
-            est = state.estimator.estimate(state.report_t_s)
+            est = state.newest_estimate()
             if est is None or (math.isfinite(est.s_m) and math.isfinite(est.sigma_s_m)):
-                s_m = None if est is None else est.s_m
-                state.position_memo = (state.estimator, state.reports_taken, s_m)
-                return s_m
+                return None if est is None else est.s_m
             raise ValueError("non-finite estimate")
         except Exception as exc:
             self._train_failed(state, exc, "estimating its position", b"", self.now_fn())
@@ -398,7 +403,7 @@ class ZoneController:
 
     @staticmethod
     def _picture(state):
-        est = state.estimator.estimate(state.report_t_s)
+        est = state.newest_estimate()
         return TrainPicture(state.train_id, est.s_m, est.sigma_s_m, est.v_mps, state.report_t_s, state.setup.profile,
                             est.ahead_m, est.behind_m)
 
@@ -420,7 +425,7 @@ class ZoneController:
         for st in self.trains.values():
             if st.report is None or not st.estimator.localized:
                 continue
-            est = st.estimator.estimate(st.report_t_s)
+            est = st.newest_estimate()
             widen = self.params.k_sigma * est.sigma_s_m
             spans.append((st.train_id, self.layout.wrap(est.s_m + widen + est.ahead_m),
                           self.layout.wrap(est.s_m - st.setup.profile.length_m - widen - est.behind_m)))
@@ -468,7 +473,7 @@ class ZoneController:
         stops = state.setup.stops
         if not stops:
             return None
-        est = state.estimator.estimate(state.report_t_s)
+        est = state.newest_estimate()
         if state.next_stop is None:
             state.next_stop = self._next_station(est.s_m, stops, at_station_ok=True)
         if state.next_stop == _NO_MORE_STOPS:
@@ -560,7 +565,7 @@ class ZoneController:
         stop_mm = eoa_mm if stop_m is None else \
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
                 _SCALE_LOW, state.estimator.odometer_per_m_low(0.0))) * 1000.0)))
-        est = state.estimator.estimate(state.report_t_s)
+        est = state.newest_estimate()
         if est is None:
             state.limit_s = None
         else:
