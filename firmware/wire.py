@@ -138,7 +138,7 @@ def hmac_sha256_hashlib(key, *parts):
         for i in range(64):
             pads[i] ^= 0x36
             pads[64 + i] ^= 0x5C
-        if len(_PADS) >= 1024:   # a board has one key, a zone one per train: bounded, and never thrashed by a fleet
+        if len(_PADS) >= 1024:   # a board has one key; whoever has no C HMAC and many keys, bounded all the same
             _PADS.clear()
         _PADS[key] = pads = (bytes(pads[:64]), bytes(pads[64:]))
     inner = hashlib.sha256(pads[0])

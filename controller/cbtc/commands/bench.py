@@ -107,17 +107,22 @@ def _machine() -> dict:
     return {"cores": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()}
 
 
+def _emit(args, name, figures, printer):
+    """Print one measure's figures: as JSON with the machine under `--json`, else by `printer`."""
+    if args.json:
+        print_json({"machine": _machine(), name: figures})
+    else:
+        printer(figures)
+    return 0
+
+
 def run_sim(args):
     from cbtc.experiments import speed
     if (args.layout is None) != (args.trains is None):
         raise ConfigError("bench sim: give --layout and --trains together, or neither (the three standard cases)")
     cases = speed.SIM_CASES if args.layout is None else ((args.layout, args.trains),)
     rows = [speed.sim_speed(layout, n, args.duration, args.seed) for layout, n in cases]
-    if args.json:
-        print_json({"machine": _machine(), "sim": rows})
-        return 0
-    _print_sim(rows)
-    return 0
+    return _emit(args, "sim", rows, _print_sim)
 
 
 def _print_sim(rows):
@@ -133,11 +138,7 @@ def _print_sim(rows):
 def run_fusion(args):
     from cbtc.experiments import speed
     row = speed.fusion_speed(args.trains, args.steps, args.seed)
-    if args.json:
-        print_json({"machine": _machine(), "fusion": row})
-        return 0
-    _print_fusion(row)
-    return 0
+    return _emit(args, "fusion", row, _print_fusion)
 
 
 def _print_fusion(row):
@@ -149,11 +150,7 @@ def _print_fusion(row):
 def run_controller(args):
     from cbtc.experiments import speed
     rows = [speed.controller_speed(n, args.duration, args.seed) for n in ((args.trains,) if args.trains else (11, 50))]
-    if args.json:
-        print_json({"machine": _machine(), "controller": rows})
-        return 0
-    _print_controller(rows)
-    return 0
+    return _emit(args, "controller", rows, _print_controller)
 
 
 def _print_controller(rows):
@@ -168,11 +165,7 @@ def run_memory(args):
     if args.trains > 11:
         raise ConfigError(f"bench memory: --trains {args.trains}: lego_oval holds up to 11 trains")
     row = speed.memory_growth(args.trains, args.duration, args.seed)
-    if args.json:
-        print_json({"machine": _machine(), "memory": row})
-        return 0
-    _print_memory(row)
-    return 0
+    return _emit(args, "memory", row, _print_memory)
 
 
 def _print_memory(row):
@@ -204,11 +197,7 @@ def run_all(args):
 def run_startup(args):
     from cbtc.experiments import speed
     rows = speed.startup(args.runs)
-    if args.json:
-        print_json({"machine": _machine(), "startup": rows})
-        return 0
-    _print_startup(rows, args.runs)
-    return 0
+    return _emit(args, "startup", rows, lambda found: _print_startup(found, args.runs))
 
 
 def _print_startup(rows, runs):

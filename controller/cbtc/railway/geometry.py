@@ -45,6 +45,15 @@ def _runs(segments):
     return runs
 
 
+def _pose_in(seg, d):
+    """(x_m, y_m, heading_rad) at distance `d` (m) into a run `seg` = (curvature, x0, y0, heading0, centre x, y)."""
+    k, x0, y0, h0, cx, cy = seg
+    if k == 0.0:
+        return x0 + d * math.cos(h0), y0 + d * math.sin(h0), h0
+    h = h0 + k * d
+    return cx + math.sin(h) / k, cy - math.cos(h) / k, h
+
+
 class Path:
     """A path of segments, each ('straight', length_m) or ('arc', radius_m, angle_rad) (angle > 0 turns left).
 
@@ -108,12 +117,7 @@ class Path:
     def _pose_scalar(self, s_m):
         s = self.wrap(float(s_m))
         i = max(bisect.bisect_right(self._starts, s) - 1, 0)
-        k, x0, y0, h0, cx, cy = self._seg[i]
-        d = s - self._starts[i]
-        if k == 0.0:
-            return x0 + d * math.cos(h0), y0 + d * math.sin(h0), h0
-        h = h0 + k * d
-        return cx + math.sin(h) / k, cy - math.cos(h) / k, h
+        return _pose_in(self._seg[i], s - self._starts[i])
 
     def _pose_on(self, i, d):
         """Pose at distance `d` (m) into run `i` (arrays of one shape)."""
@@ -154,9 +158,9 @@ class Path:
         """`project` of one point over the whole path, on floats: the same candidates (each run's free minimiser
         clipped to the run, then every run's start, then every run's end) taken in the same order, so the same
         answer, ties included."""
-        found = []   # (distance^2, s) per candidate, in the array version's order
-        ends = ([], [], [])
-        for (k, x0, y0, h0, cx, cy), start, length in zip(self._seg, self._starts, self._lens):
+        found = ([], [], [])   # (distance^2, s) of each run's candidates, by kind as the array version orders them
+        for seg, start, length in zip(self._seg, self._starts, self._lens):
+            k, x0, y0, h0, cx, cy = seg
             if k == 0.0:
                 d_free = (px - x0) * math.cos(h0) + (py - y0) * math.sin(h0)
             else:
@@ -164,20 +168,11 @@ class Path:
                 theta0 = h0 - sign * (math.pi / 2)
                 swept = ((math.atan2(py - cy, px - cx) - theta0) * sign) % (2.0 * math.pi)
                 d_free = swept / abs(k)
-            for slot, d in zip(ends, (min(max(d_free, 0.0), length), 0.0, length)):
-                if k == 0.0:
-                    qx, qy = x0 + d * math.cos(h0), y0 + d * math.sin(h0)
-                else:
-                    h = h0 + k * d
-                    qx, qy = cx + math.sin(h) / k, cy - math.cos(h) / k
-                slot.append(((qx - px) ** 2 + (qy - py) ** 2, start + d))
-        for slot in ends:
-            found.extend(slot)
-        best = found[0]
-        for cand in found[1:]:
-            if cand[0] < best[0]:
-                best = cand
-        return self.wrap(best[1])
+            for kind, d in zip(found, (min(max(d_free, 0.0), length), 0.0, length)):
+                qx, qy, _h = _pose_in(seg, d)
+                kind.append(((qx - px) ** 2 + (qy - py) ** 2, start + d))
+        # the first of the nearest, as argmin takes it
+        return self.wrap(min(found[0] + found[1] + found[2], key=lambda cand: cand[0])[1])
 
     def project(self, x_m, y_m, s_hint_m=None, window_m=0.5):
         """Arc length (m) of the point of the path nearest to (x_m, y_m).

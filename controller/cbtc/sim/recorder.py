@@ -238,10 +238,6 @@ class Recorder:
     def laps(self, i):
         return len(self._crossings[i])
 
-    def distance_m(self, i):
-        """How far train i has travelled (m) at the newest sample."""
-        return self._travelled_before[i]
-
     def estimation_error(self, i):
         """RMSE and max of the controller's estimate against truth along the track (m), while located."""
         count, squares, worst = self._error[i]
