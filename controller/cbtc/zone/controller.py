@@ -73,6 +73,7 @@ class TrainState:
         self.safe_m = None           # distance the safety limit allowed at the last command (m)
         self.eoa_mm = None
         self.cmd_seq = 0
+        self.cmd_fields = None       # what the newest command sent says (wire.encode_command's fields but seq)
         self.reports_rejected = 0
         self.last_reject = ""
         self.stop_overruns = 0
@@ -571,13 +572,17 @@ class ZoneController:
         else:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
-        state.cmd_seq = wire.wrap_add(state.cmd_seq, 1)
         rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) else 0
-        payload = wire.encode_command(
-            state.setup.key, state.train_id, report["boot"], state.cmd_seq, self.session_id, report["seq"],
-            int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
-            max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms,
-            max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))   # floored: the safe side
+        fields = (report["boot"], self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm,
+                  int(self.params.ttl_s * 1000), max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm,
+                  rpt_ms, max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))  # floored
+        if fields == state.cmd_fields:
+            # the board holds this very command (same report, so the same expiry): sending it again changes nothing
+            return
+        state.cmd_fields = fields
+        state.cmd_seq = wire.wrap_add(state.cmd_seq, 1)
+        boot, sid, rseq, *rest = fields
+        payload = wire.encode_command(state.setup.key, state.train_id, boot, state.cmd_seq, sid, rseq, *rest)
         self.client.publish(wire.topic_command(state.train_id), payload)
         if self.on_command is not None:
             self.on_command(state, now_s)
