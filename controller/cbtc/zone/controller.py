@@ -591,7 +591,7 @@ class ZoneController:
         """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
         fixed blocks rest on track circuits), a train behind is held by it, and it is among the `fast_slots` trains
         whose followers have the least authority left."""
-        if now_s >= state.fast_until_s or not self.policy.fast_reports:
+        if now_s >= state.fast_until_s or not self.policy.fast_reports or not self.fast_slots:
             return False
         lapsed = [train_id for train_id, st in self._fast_wanting.items() if now_s >= st.fast_until_s]
         for train_id in lapsed:
