@@ -92,6 +92,9 @@ class Path:
         self._starts = starts                     # Python lists for the scalar paths (bisect, projection)
         self._lens = lengths
         self._seg = tuple(zip(ks, xs, ys, hs, cxs, cys))
+        # each run with the points at its two ends, as _pose_in gives them: the projection's fixed candidates
+        self._seg_ends = tuple((seg, start, length, _pose_in(seg, 0.0), _pose_in(seg, length))
+                               for seg, start, length in zip(self._seg, starts, lengths))
         self._start = np.asarray(starts)
         self._len = np.asarray(lengths)
         self._k = np.asarray(ks)
@@ -159,7 +162,7 @@ class Path:
         clipped to the run, then every run's start, then every run's end) taken in the same order, so the same
         answer, ties included."""
         found = ([], [], [])   # (distance^2, s) of each run's candidates, by kind as the array version orders them
-        for seg, start, length in zip(self._seg, self._starts, self._lens):
+        for seg, start, length, first, last in self._seg_ends:
             k, x0, y0, h0, cx, cy = seg
             if k == 0.0:
                 d_free = (px - x0) * math.cos(h0) + (py - y0) * math.sin(h0)
@@ -168,9 +171,10 @@ class Path:
                 theta0 = h0 - sign * (math.pi / 2)
                 swept = ((math.atan2(py - cy, px - cx) - theta0) * sign) % (2.0 * math.pi)
                 d_free = swept / abs(k)
-            for kind, d in zip(found, (min(max(d_free, 0.0), length), 0.0, length)):
-                qx, qy, _h = _pose_in(seg, d)
-                kind.append(((qx - px) ** 2 + (qy - py) ** 2, start + d))
+            d = min(max(d_free, 0.0), length)
+            free = first if d == 0.0 else last if d == length else _pose_in(seg, d)
+            for kind, (qx, qy, _h), d_m in ((found[0], free, d), (found[1], first, 0.0), (found[2], last, length)):
+                kind.append(((qx - px) ** 2 + (qy - py) ** 2, start + d_m))
         # the first of the nearest, as argmin takes it
         return self.wrap(min(found[0] + found[1] + found[2], key=lambda cand: cand[0])[1])
 
