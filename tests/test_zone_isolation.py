@@ -99,7 +99,8 @@ def test_stamps_outside_their_report_are_dropped_and_odometer_jumps_measured():
 
 
 def test_the_zones_order_of_trains_is_always_what_sorting_them_afresh_gives():
-    """The zone keeps its located trains in position order as an index, placing again only the trains with news:
+    """The zone keeps its located trains in position order as an index, placing again only the trains with news, and
+    which trains answer it and whose data is oldest as a set and a heap:
     through a run with a controller restart, a board's reboot, an encoder burst (the train is located afresh) and lost
     reports, at every tick it equals the order a full sort of every train's position gives."""
     from cbtc.sim.runs import sim_config
@@ -118,6 +119,14 @@ def test_the_zones_order_of_trains_is_always_what_sorting_them_afresh_gives():
                  if st.report is not None and st.estimator.localized]
         assert located == [st for _s, _r, st in sorted((f for f in found if f[0] is not None),
                                                          key=lambda f: (f[0], f[1]))]
+        # the answered set and the heap of receive times against their definitions over every train
+        assert zc._all_located(located) == (len(located) == len(zc.trains)
+                                            and all(st.boots.answered for st in located))
+        for st in zc.trains.values():
+            assert zc._leader_stale(st, _now_s) == any(
+                other is not st and (other.report_recv_s is None
+                                     or _now_s - other.report_recv_s > zc.params.max_leader_age_s)
+                for other in zc.trains.values())
         checked.append(len(located))
 
     sim.scheduler.call_every(0.05, check, start_s=0.0107)

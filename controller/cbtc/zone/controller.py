@@ -17,6 +17,7 @@ and dropped.
 
 import bisect
 import hashlib
+import heapq
 import logging
 import math
 import random
@@ -141,6 +142,10 @@ class ZoneController:
         self._located = []        # the states of _order
         self._departing = {}      # train id -> state, trains whose newest authority is a departure
         self._fast_wanting = {}   # train id -> state, trains asked for fast reports (some may have lapsed)
+        self._unanswered = set()  # states whose newest report does not echo this controller's session
+        self._heard = []          # heap of (receive time, rank, state) of reports taken; entries a newer report of
+        #                           its train replaced are dropped when they come to the top
+        self._unheard = 0         # trains that have not reported yet
         self.layout = layout
         self.client = client
         self.now_fn = now_fn
@@ -163,6 +168,8 @@ class ZoneController:
                 layout.station(name)  # raises LayoutError naming the known stations
             self.trains[setup.train_id] = TrainState(setup, estimator_factory(layout, setup.profile),
                                                      rank=len(self.trains), on_change=self._moved.add)
+        self._unanswered = set(self.trains.values())
+        self._unheard = len(self.trains)
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.refusals = RefusalLog(log)
@@ -231,6 +238,10 @@ class ZoneController:
             log.warning("train %s restarted (boot %d): locating it afresh", state.train_id, report["boot"])
             state.restart(self._estimator_factory(self.layout, state.setup.profile))
             previous = None
+        if state.boots.answered:
+            self._unanswered.discard(state)
+        else:
+            self._unanswered.add(state)
         self._watch_answers(state, recv_s)
         state.clock.observe(report["t_ms"], recv_s)
         report, dropped = plausibility.plausible_parts(report, None if previous is None else previous["odo_mm"])
@@ -264,6 +275,10 @@ class ZoneController:
                 self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
                                    "updating its filter", payload, recv_s)
         state.report = report
+        if state.report_recv_s is None:
+            self._unheard -= 1
+        if state.report_recv_s != recv_s:   # one entry a train in the heap for each receive time
+            heapq.heappush(self._heard, (recv_s, state.rank, state))
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
         state.reports_taken += 1
@@ -352,7 +367,7 @@ class ZoneController:
     def _all_located(self, located):
         """Every train located, and answering this controller (its reports echo our session): a replayed stream of
         reports never answers, so no authority rests on it."""
-        return len(located) == len(self.trains) and all(st.boots.answered for st in located)
+        return len(located) == len(self.trains) and not self._unanswered
 
     def cycle(self, now_s: float):
         """Compute and publish a command for every train that has reported. In event-driven mode a train answered
@@ -461,10 +476,11 @@ class ZoneController:
     def _answer(self, state, now_s):
         """Event-driven: a fresh report is answered at once, and it extends its follower's authority at once too."""
         located = self.located()
-        if state not in located:
+        entry = self._placed.get(state)
+        if entry is None:
             return
         all_located = self._all_located(located)
-        i = located.index(state)
+        i = bisect.bisect_left(self._order, entry)
         self._update(state, self._leader_of(located, i), all_located, now_s)
         if all_located and len(located) > 1 and (i > 0 or self.layout.closed):
             self._update(located[i - 1], state, True, now_s)
@@ -612,12 +628,27 @@ class ZoneController:
                 self._command(state, None, None, 0.0, beta_mps2, beta_mps2, now_s)
 
     def _leader_stale(self, state, now_s):
-        """True when the data of some other train is older than the limit: the authority must not extend."""
-        for other in self.trains.values():
-            if other is not state and (other.report_recv_s is None or
-                                       now_s - other.report_recv_s > self.params.max_leader_age_s):
-                return True
-        return False
+        """True when the data of some other train is older than the limit: the authority must not extend. The
+        oldest report taken of another train decides: the heap of reports has it at the top, or just below `state`."""
+        if self._unheard > (state.report_recv_s is None):
+            return True   # some other train has not reported at all
+        heard = self._heard
+        oldest = self._oldest_heard()
+        if oldest is None:
+            return False
+        if oldest[2] is state:
+            heapq.heappop(heard)
+            other = self._oldest_heard()
+            heapq.heappush(heard, oldest)
+            oldest = other
+        return oldest is not None and now_s - oldest[0] > self.params.max_leader_age_s
+
+    def _oldest_heard(self):
+        """The heap's top entry once every entry a newer report replaced is dropped from it; None when empty."""
+        heard = self._heard
+        while heard and heard[0][0] != heard[0][2].report_recv_s:
+            heapq.heappop(heard)
+        return heard[0] if heard else None
 
     def checked_gap_m(self, state, gap_est_m, sigma_m, now_s):
         """The gap (m) the authority may use from the estimated one and `state`'s own measured gap
