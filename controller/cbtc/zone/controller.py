@@ -98,6 +98,8 @@ class TrainState:
         self.failures_said = set()   # the exception types already logged for it
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
         self.estimate_memo = None    # (estimator, reports_taken, Estimate): the estimate at its newest report
+        self.picture_memo = None     # (Estimate, report_t_s, TrainPicture): the picture made of it
+        self.scale_memo = (None, None, {})   # (estimator, reports_taken, {k_sigma: odometer m per m, low bound})
 
     @property
     def train_id(self):
@@ -112,6 +114,30 @@ class TrainState:
         est = self.estimator.estimate(self.report_t_s)
         self.estimate_memo = (self.estimator, self.reports_taken, est)
         return est
+
+    def picture(self):
+        """The train as the zone sees it at its newest report (a TrainPicture; its estimate must exist), made once
+        per report: the train's own command and its follower's share it."""
+        est = self.newest_estimate()
+        memo = self.picture_memo
+        if memo is not None and memo[0] is est and memo[1] == self.report_t_s:
+            return memo[2]
+        picture = TrainPicture(self.train_id, est.s_m, est.sigma_s_m, est.v_mps, self.report_t_s, self.setup.profile,
+                               est.ahead_m, est.behind_m)
+        self.picture_memo = (est, self.report_t_s, picture)
+        return picture
+
+    def odometer_per_m_low(self, k_sigma):
+        """The estimator's low bound of the encoder's scale at `k_sigma` (UkfEstimator.odometer_per_m_low), asked
+        once per report: it changes only with a report taken or a new estimator."""
+        estimator, taken, found = self.scale_memo
+        if estimator is not self.estimator or taken != self.reports_taken:
+            found = {}
+            self.scale_memo = (self.estimator, self.reports_taken, found)
+        low = found.get(k_sigma)
+        if low is None:
+            low = found[k_sigma] = self.estimator.odometer_per_m_low(k_sigma)
+        return low
 
     def restart(self, estimator):
         """The board rebooted: forget its clock, odometer frame and position; it must be located again."""
@@ -417,18 +443,12 @@ class ZoneController:
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
 
-    @staticmethod
-    def _picture(state):
-        est = state.newest_estimate()
-        return TrainPicture(state.train_id, est.s_m, est.sigma_s_m, est.v_mps, state.report_t_s, state.setup.profile,
-                            est.ahead_m, est.behind_m)
-
     def _situation(self, state, leader, now_s):
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
         departing = tuple(other.setup.profile for other in sorted(self._departing.values(), key=lambda st: st.rank)
                           if other is not state) if self._departing else ()
-        return Situation(self.layout, now_s, self.cycle_s, self._picture(state),
-                         None if leader is None else self._picture(leader), state.rng_gap, self.ranging_sigma_m,
+        return Situation(self.layout, now_s, self.cycle_s, state.picture(),
+                         None if leader is None else leader.picture(), state.rng_gap, self.ranging_sigma_m,
                          self.use_measured_gap, departing, self._spans() if self.policy.needs_spans else ())
 
     def _spans(self):
@@ -551,7 +571,7 @@ class ZoneController:
         # a low bound of the encoder's scale (odometer m per true m): a wheel that reads short must not carry the
         # train past its limit; the board's braking curves use it too (odo_mm_per_m). Outside the band a wheel can
         # have, the mapping into odometer units is not trusted: no authority beyond braking, the train stops
-        scale_low = state.estimator.odometer_per_m_low(self.params.k_sigma)
+        scale_low = state.odometer_per_m_low(self.params.k_sigma)
         if not scale_trusted(scale_low, _SCALE_LOW, _SCALE_HIGH):
             if safe_m is not None:
                 self.refusals.note(state.train_id, "encoder scale", f"learnt {scale_low:.3f} odometer m per m, outside "
@@ -581,7 +601,7 @@ class ZoneController:
         # a stop target is service, not safety: the best estimate of the scale, and never beyond the end of authority
         stop_mm = eoa_mm if stop_m is None else \
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
-                _SCALE_LOW, state.estimator.odometer_per_m_low(0.0))) * 1000.0)))
+                _SCALE_LOW, state.odometer_per_m_low(0.0))) * 1000.0)))
         est = state.newest_estimate()
         if est is None:
             state.limit_s = None
