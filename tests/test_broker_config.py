@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from cbtc.bus.broker_config import acl_text, config_text, password_hash, write_config
+from cbtc.bus.broker_config import acl_text, config_text, new_password, password_hash, write_config
 from cbtc.cli import main
 from cbtc.errors import ConfigError
 from cbtc.live.keys import load_keys, train_keys
@@ -104,3 +104,10 @@ def test_keys_new_and_load(tmp_path, capsys):
     with pytest.raises(ConfigError, match="32 hex characters"):
         load_keys(str(path))
     assert train_keys(["A"], None, sim_seed=3) == {"A": train_key(3, "A")}
+
+
+def test_generated_passwords_pass_as_command_line_values():
+    """A password that began with '-' would be read as an option by `cbtc flash --password X`."""
+    for _ in range(200):
+        password = new_password()
+        assert len(password) == 36 and set(password) <= set("0123456789abcdef")

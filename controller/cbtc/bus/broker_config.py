@@ -92,6 +92,12 @@ def config_text(port: int, folder: str, host: str = "127.0.0.1", secured: bool =
     return "\n".join(lines) + "\n"
 
 
+def new_password() -> str:
+    """A random password of 144 bits in hex digits: it never starts with '-', so `--password X` takes it on any
+    command line (a urlsafe token may, and argparse then reads it as an option)."""
+    return secrets.token_hex(18)
+
+
 def write_config(folder: str, train_ids, port: int = 1883, host: str = "127.0.0.1", credentials: dict = None,
                  run_as: str = None) -> dict:
     """Write mosquitto.conf, passwd, acl and credentials.json into `folder` (created); returns the file paths.
@@ -104,7 +110,7 @@ def write_config(folder: str, train_ids, port: int = 1883, host: str = "127.0.0.
     users = [ZC_USER] + [train_user(t) for t in train_ids]
     passwords = dict(credentials or {})
     for user in users:
-        passwords.setdefault(user, secrets.token_urlsafe(18))
+        passwords.setdefault(user, new_password())
     os.makedirs(folder, exist_ok=True)
     paths = {name: os.path.join(folder, name) for name in ("mosquitto.conf", "passwd", "acl", "credentials.json")}
     _write(paths["passwd"], "".join("%s:%s\n" % (u, password_hash(passwords[u])) for u in users), 0o644)
