@@ -23,6 +23,8 @@ def test_bench_sim_sets_the_run_beside_a_do_nothing_controller(capsys):
     row = bench(capsys, ["sim", "--layout", "itb_square", "--trains", "2", "--duration", "8"])["sim"][0]
     assert row["trains"] == 2 and row["collisions"] == 0 and row["authority_overruns"] == 0
     assert row["simulated_s"] > 7.9 and row["reference_wall_s"] > 0 and 0.0 <= row["controller_share"] < 1.0
+    # the traffic: every train reports at least at the board's own 20 Hz, and each report is answered
+    assert row["reports_per_train_s"] >= 19.0 and row["commands_per_report"] >= 1.0 and row["us_per_report"] > 0
 
 
 def test_bench_startup_measures_each_command_beside_python(capsys):

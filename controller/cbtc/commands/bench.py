@@ -131,7 +131,9 @@ def _print_sim(rows):
     print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("simulated_s", "simulated s"),
                               ("wall_s", "wall s"), ("real_time_factor", "x real time"),
                               ("reference_real_time_factor", "x, no controller"),
-                              ("controller_share", "controller share"), ("collisions", "collisions"),
+                              ("controller_share", "controller share"), ("reports_per_train_s", "reports/train/s"),
+                              ("commands_per_report", "commands/report"), ("us_per_report", "us/report"),
+                              ("collisions", "collisions"),
                               ("authority_overruns", "overruns"), ("emergency_trips", "trips")]))
 
 

@@ -2,7 +2,8 @@
 
 - **sim**: simulated seconds per wall second for a fleet, and the same world with a controller that does nothing
   (its reports unanswered, no cycle: the trains stand) as the reference for the simulation's own overhead; the
-  controller's share is what the full run costs beyond it.
+  controller's share is what the full run costs beyond it; beside it the traffic the speed follows: reports a
+  train-second, commands a report, and the full run's wall time per report.
 - **fusion**: wall time of one train-update (predict 50 ms, odometer, IPS fix) of our filter and of filterpy's
   UnscentedKalmanFilter on the same inputs, over a fleet, with the largest difference between the two.
 - **controller**: wall time a zone takes per report (its cycles included), replaying a simulated run's reports, beside
@@ -50,8 +51,14 @@ def sim_speed(layout_name: str, n_trains: int, duration_s: float, seed: int = 0)
     idle.run()
     idle_s = time.perf_counter() - started
     simulated_s = summary["simulated_s"]
+    # the traffic the speed follows: reports the zone took, commands it sent, and the wall time a report costs
+    reports = sum(st.reports_taken for st in full.zc.trains.values())
+    commands = sum(st.cmd_seq for st in full.zc.trains.values())
     return {"layout": layout.name, "trains": n_trains, "simulated_s": simulated_s, "wall_s": round(full_s, 3),
             "real_time_factor": round(simulated_s / full_s, 2),
+            "reports_per_train_s": round(reports / n_trains / simulated_s, 1) if simulated_s else None,
+            "commands_per_report": round(commands / reports, 2) if reports else None,
+            "us_per_report": round(1e6 * full_s / reports, 1) if reports else None,
             "reference_wall_s": round(idle_s, 3), "reference_real_time_factor": round(simulated_s / idle_s, 2),
             "controller_share": round(1.0 - idle_s / full_s, 3),
             "collisions": summary["collisions"], "authority_overruns": summary["authority_overruns"],
