@@ -97,46 +97,46 @@ class TrainState:
         self.failures = 0            # exceptions in this train's handling: located afresh
         self.failures_said = set()   # the exception types already logged for it
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
-        self.estimate_memo = None    # (estimator, reports_taken, Estimate): the estimate at its newest report
-        self.picture_memo = None     # (Estimate, report_t_s, TrainPicture): the picture made of it
-        self.scale_memo = (None, None, {})   # (estimator, reports_taken, {k_sigma: odometer m per m, low bound})
+        self._memo_key = None        # (estimator, reports_taken) the values in _memo were made for
+        self._memo = {}              # what the zone asks of this train per report: its estimate, picture, scale bounds
 
     @property
     def train_id(self):
         return self.setup.train_id
 
+    def _per_report(self):
+        """The values kept for the newest report: they change only with a report taken or a new estimator, so the
+        train's own command and its follower's share them."""
+        key = (self.estimator, self.reports_taken)
+        if self._memo_key != key:
+            self._memo_key, self._memo = key, {}
+        return self._memo
+
     def newest_estimate(self):
-        """The estimator's estimate at the newest report's sample time (None while unlocated), asked of the estimator
-        once per report: it changes only with a report taken or a new estimator."""
-        memo = self.estimate_memo
-        if memo is not None and memo[0] is self.estimator and memo[1] == self.reports_taken:
-            return memo[2]
-        est = self.estimator.estimate(self.report_t_s)
-        self.estimate_memo = (self.estimator, self.reports_taken, est)
-        return est
+        """The estimator's estimate at the newest report's sample time (None while unlocated), made once per report."""
+        memo = self._per_report()
+        if "estimate" not in memo:
+            memo["estimate"] = self.estimator.estimate(self.report_t_s)
+        return memo["estimate"]
 
     def picture(self):
         """The train as the zone sees it at its newest report (a TrainPicture; its estimate must exist), made once
-        per report: the train's own command and its follower's share it."""
-        est = self.newest_estimate()
-        memo = self.picture_memo
-        if memo is not None and memo[0] is est and memo[1] == self.report_t_s:
-            return memo[2]
-        picture = TrainPicture(self.train_id, est.s_m, est.sigma_s_m, est.v_mps, self.report_t_s, self.setup.profile,
-                               est.ahead_m, est.behind_m)
-        self.picture_memo = (est, self.report_t_s, picture)
+        per report."""
+        memo = self._per_report()
+        picture = memo.get("picture")
+        if picture is None:
+            est = self.newest_estimate()
+            picture = memo["picture"] = TrainPicture(self.train_id, est.s_m, est.sigma_s_m, est.v_mps, self.report_t_s,
+                                                     self.setup.profile, est.ahead_m, est.behind_m)
         return picture
 
     def odometer_per_m_low(self, k_sigma):
-        """The estimator's low bound of the encoder's scale at `k_sigma` (UkfEstimator.odometer_per_m_low), asked
-        once per report: it changes only with a report taken or a new estimator."""
-        estimator, taken, found = self.scale_memo
-        if estimator is not self.estimator or taken != self.reports_taken:
-            found = {}
-            self.scale_memo = (self.estimator, self.reports_taken, found)
-        low = found.get(k_sigma)
+        """The estimator's low bound of the encoder's scale at `k_sigma` (UkfEstimator.odometer_per_m_low), made once
+        per report for each `k_sigma`."""
+        memo = self._per_report()
+        low = memo.get(k_sigma)
         if low is None:
-            low = found[k_sigma] = self.estimator.odometer_per_m_low(k_sigma)
+            low = memo[k_sigma] = self.estimator.odometer_per_m_low(k_sigma)
         return low
 
     def restart(self, estimator):
