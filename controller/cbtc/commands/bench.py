@@ -31,6 +31,9 @@ def register(sub):
     lat.add_argument("--broker", default="embedded", metavar="URL",
                      help="mqtt://HOST:PORT of an open broker, or 'embedded' (default): a private Mosquitto")
     lat.add_argument("--trains", type=arg_types.whole(1), default=20, help="number of virtual trains (default 20)")
+    lat.add_argument("--rate", type=arg_types.number(minimum=1.0, maximum=50.0, example="20"), default=20.0,
+                     metavar="HZ", help="reports a second each train sends (default 20, the board's); the raw paho "
+                                        "reference pings at the same rate")
     lat.add_argument("--duration", type=arg_types.seconds, default=10.0,
                      help="seconds measured after the warm-up (default 10)")
     lat.add_argument("--warmup", type=arg_types.number(minimum=0.0, example="2"), default=2.0,
@@ -224,5 +227,13 @@ def _print(f):
         p50 = "       -" if s["p50"] is None else f"{s['p50']:8.3f}"
         p99 = "       -" if s["p99"] is None else f"{s['p99']:8.3f}"
         print(f"  {label:52s} p50 {p50} ms  p99 {p99} ms  (n={s['n']})")
-    print(f"  reports {f['reports_received']}/{f['reports_published']} received, {f['reports_answered']} "
-          f"answered; trains moving: {f['moving_trains']}/{f['trains']}")
+    print(f"  reports {f['reports_received']}/{f['reports_published']} received ({f['reports_dropped']} dropped), "
+          f"{f['reports_answered']} answered ({f['reports_unanswered']} unanswered); trains moving: "
+          f"{f['moving_trains']}/{f['trains']}; controller process CPU {100 * f['controller_cpu_core_share']:.0f} % "
+          f"of a core")
+    r = f["reference"]
+    rt = r["round_trip_ms"]
+    print(f"reference, raw paho ping-pong with {f['trains']} clients at {f['rate_hz']:g} Hz through the same broker: "
+          f"p50 {rt['p50']} ms, p99 {rt['p99']} ms, max {rt['max']} ms ({r['pings_lost']} of {r['pings_sent']} lost; "
+          f"answering CPU {100 * r['answering_cpu_core_share']:.0f} % of a core)")
+    print(f"report -> command over the reference: p50 {f['p50_over_reference']}x, p99 {f['p99_over_reference']}x")

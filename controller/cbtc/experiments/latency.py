@@ -1,10 +1,11 @@
 """Latency of the live system: report -> command round trips through a real MQTT broker, and the controller's
 compute time.
 
-The zone controller runs in this process, N virtual trains in a second one (each train its own MQTT connection,
-reporting at the firmware's rate, 20 Hz, or 50 Hz when the controller asks a followed train for fast reports within
-its report budget; report phases spread over the period as independent boards have them), all through the broker on
-the wall clock; `--broker embedded` starts a private Mosquitto on a free loopback port.
+The zone controller runs in this process, N virtual trains in child ones (each train its own MQTT connection,
+reporting at `--rate`, the board's 20 Hz by default, or 50 Hz when the controller asks a followed train for fast
+reports within its report budget; report phases spread over the period as independent boards have them), all through
+the broker on the wall clock; `--broker embedded` starts a private Mosquitto on a free loopback port. Then, on the same
+broker, the reference: a raw paho ping-pong with as many clients at the same rate (experiments/ping_pong.py).
 What the controller does: it answers a train's report in its next 10 Hz cycle (the command carries that report's
 seq as `rseq`), and it also answers a report at once by extending the authority of the train behind. So the figures:
 
@@ -15,6 +16,10 @@ seq as `rseq`), and it also answers a report at once by extending the authority 
   report_to_cmd    report published -> command for that report received by the train (the sum: what a train sees)
   event_answer     report of a train published -> the command it triggered for the train behind received
   cycle_compute    one controller cycle (all trains), on_report_compute: handling one report
+  reports_dropped  published in the window and never received by the controller; reports_unanswered: never answered
+  controller_cpu_core_share   the controller process's CPU time over the window (its bus and these probes
+                   included) per wall second: 1.0 is a whole core
+  reference        the ping-pong's round trip, lost pings and answering CPU; p50/p99_over_reference: ours over it
 
 All times in ms, p50 and p99, from time.monotonic(), which on Linux is CLOCK_MONOTONIC and so one clock for both
 processes. A message is timed when the receiving side's handler starts, so waiting in the receiver's queue counts.
@@ -24,6 +29,7 @@ The first `--warmup` seconds are left out.
 import json
 import math
 import multiprocessing
+import resource
 import tempfile
 import time
 
@@ -32,7 +38,7 @@ import numpy as np
 from cbtc.bus.broker_config import MosquittoProcess
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.errors import BusError
-from cbtc.firmware import obu
+from cbtc.experiments.ping_pong import ping_pong
 from cbtc.layout_files import load_layout
 from cbtc.live.loop import LiveLoop
 from cbtc.protocol import wire
@@ -44,7 +50,6 @@ from cbtc.zone.factory import build_zone
 STRAIGHT_M = 0.128        # LEGO straight, 16 studs
 CURVES_M = 2 * math.pi * 0.32
 ROOM_PER_TRAIN_M = 0.55   # train length + safety margin + slack for queue_scenario
-REPORT_PERIOD_S = obu.DEFAULTS["report_ms"] / 1000.0   # the OnboardUnit's report period
 TAIL_S = 0.3              # run on after the window so its last commands arrive
 
 
@@ -155,21 +160,27 @@ def figures(zc: ZcProbe, report_pub: dict, cmd_recv: dict, t0: float, t1: float)
         total.append(t_recv - report_pub[key])
     published = [k for k, t in report_pub.items() if t0 <= t <= t1]
     return {
-        "transport_rtt_ms": _stats(transport), "uplink_ms": _stats(up), "downlink_ms": _stats(down),
-        "answer_wait_ms": _stats(wait), "report_to_cmd_ms": _stats(total), "event_answer_ms": _stats(event),
-        "cycle_compute_ms": _stats([c for t, c in zc.cycles if t0 <= t <= t1]),
-        "on_report_compute_ms": _stats([c for t, c in zc.on_report if t0 <= t <= t1]),
+        "transport_rtt_ms": stats_ms(transport), "uplink_ms": stats_ms(up), "downlink_ms": stats_ms(down),
+        "answer_wait_ms": stats_ms(wait), "report_to_cmd_ms": stats_ms(total), "event_answer_ms": stats_ms(event),
+        "cycle_compute_ms": stats_ms([c for t, c in zc.cycles if t0 <= t <= t1]),
+        "on_report_compute_ms": stats_ms([c for t, c in zc.on_report if t0 <= t <= t1]),
         "reports_published": len(published), "reports_received": sum(1 for k in published if k in zc.report_recv),
-        "reports_answered": len(answered),
+        "reports_answered": sum(1 for k in published if k in answered),
     }
 
 
-def _stats(values_s):
+def stats_ms(values_s):
+    """n, p50, p99 and max of durations in seconds, in ms."""
     if not values_s:
         return {"n": 0, "p50": None, "p99": None, "max": None}
     arr = np.asarray(values_s) * 1000.0
     return {"n": int(arr.size), "p50": round(float(np.percentile(arr, 50)), 3),
             "p99": round(float(np.percentile(arr, 99)), 3), "max": round(float(arr.max()), 3)}
+
+
+def _cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _fleet(layout_name, n_trains, seed):
@@ -189,15 +200,26 @@ def run_latency(args) -> dict:
         url = args.broker
     try:
         result = _measure(args, layout, config, url)
+        reference = ping_pong(url, args.trains, args.rate, args.duration, args.warmup, args.train_procs)
     finally:
         if broker is not None:
             broker.kill()
+    result["reports_dropped"] = result["reports_published"] - result["reports_received"]
+    result["reports_unanswered"] = result["reports_published"] - result["reports_answered"]
+    ours, ref = result["report_to_cmd_ms"], reference["round_trip_ms"]
     result.update({"broker": "embedded mosquitto" if broker is not None else url, "trains": args.trains,
-                   "layout": layout.name, "duration_s": args.duration,
-                   # measured: 20 Hz, or 50 Hz from a followed train within the controller's report budget
+                   "layout": layout.name, "duration_s": args.duration, "rate_hz": args.rate,
+                   # measured: the rate asked, or 50 Hz from a followed train within the controller's report budget
                    "report_hz": round(result["reports_published"] / (args.duration * args.trains), 1),
-                   "controller_cycle_hz": round(1.0 / config.cycle_s, 3)})
+                   "controller_cycle_hz": round(1.0 / config.cycle_s, 3),
+                   "reference": reference,
+                   "p99_over_reference": _ratio(ours["p99"], ref["p99"]),
+                   "p50_over_reference": _ratio(ours["p50"], ref["p50"])})
     return result
+
+
+def _ratio(a, b):
+    return None if a is None or not b else round(a / b, 2)
 
 
 def _measure(args, layout, config, url):
@@ -210,8 +232,8 @@ def _measure(args, layout, config, url):
     pipes, children = [], []
     for group in groups:
         here, there = ctx.Pipe()
-        child = ctx.Process(target=_trains_side, args=(there, url, args.layout, args.trains, group, args.seed),
-                            daemon=True)
+        child = ctx.Process(target=_trains_side, daemon=True,
+                            args=(there, url, args.layout, args.trains, group, args.seed, args.rate))
         child.start()
         pipes.append(here)
         children.append(child)
@@ -228,6 +250,9 @@ def _measure(args, layout, config, url):
         for here in pipes:
             here.send((t0, t1))
         loop.scheduler.call_every(config.cycle_s, probe.timed_cycle(zc), start_s=loop.now_s() + 0.05)
+        cpu_s = []    # this process's CPU time (the controller, its bus and the probes) at t0 and at t1
+        for t_s in (t0, t1):
+            loop.scheduler.call_at(loop.now_s() + t_s - time.monotonic(), lambda: cpu_s.append(_cpu_s()))
         loop.install_signal_handlers()
         loop.run(t1 + TAIL_S - time.monotonic())
         for here in pipes:
@@ -245,10 +270,11 @@ def _measure(args, layout, config, url):
                 child.kill()
     result = figures(probe, report_pub, cmd_recv, t0, t1)
     result["moving_trains"] = moving
+    result["controller_cpu_core_share"] = round((cpu_s[1] - cpu_s[0]) / args.duration, 3) if len(cpu_s) == 2 else None
     return result
 
 
-def _trains_side(conn, url, layout_name, n_trains, indices, seed):
+def _trains_side(conn, url, layout_name, n_trains, indices, seed, rate_hz):
     """A trains process: the virtual trains `indices` of the fleet, with probes; sends its timestamps to `conn`."""
     buses = []
     try:
@@ -264,13 +290,14 @@ def _trains_side(conn, url, layout_name, n_trains, indices, seed):
             rng = np.random.default_rng([seed, index])
             offset_ms = int(rng.integers(0, 10_000_000))
             trains.append(VirtualTrain(spec.train_id, train_key(seed, spec.train_id), layout, spec.profile,
-                                       spec.s0_m, probe.wrap(bus, spec.train_id), rng, offset_ms))
+                                       spec.s0_m, probe.wrap(bus, spec.train_id), rng, offset_ms,
+                                       obu_overrides={"report_ms": round(1000.0 / rate_hz)}))
         conn.send("ready")
         _t0, t1 = conn.recv()
         start_s = loop.now_s()
         for index, train in zip(indices, trains):
             # independent boards: report phases spread over the report period, not all at once
-            loop.scheduler.call_every(config.loop_s, train.tick, start_s=start_s + REPORT_PERIOD_S * index / n_trains)
+            loop.scheduler.call_every(config.loop_s, train.tick, start_s=start_s + index / (rate_hz * n_trains))
         loop.run(t1 + TAIL_S - time.monotonic())
         conn.send((probe.report_pub, probe.cmd_recv, sum(1 for t in trains if t.travelled_m > 0.05)))
     except Exception as exc:  # report to the parent instead of dying silently
