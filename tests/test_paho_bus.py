@@ -1,5 +1,5 @@
 """The paho-mqtt bus: URL and QoS rules, the inbox, and against a real Mosquitto: routing, TCP_NODELAY, retained
-status and last will, reconnect with resubscribe, refusal."""
+status and last will, reconnect with resubscribe, refusal; each with paho's own thread and on one NetLoop."""
 
 import socket
 import subprocess
@@ -10,18 +10,22 @@ import time
 import pytest
 
 from cbtc.bus.client import BusClient
+from cbtc.bus.net_loop import NetLoop
 from cbtc.bus.paho_bus import Inbox, PahoBus, parse_broker_url, topic_qos
 from cbtc.errors import BusError, ConfigError
 
 
-def wait_for(predicate, timeout_s, what, inbox=None):
+def wait_for(predicate, timeout_s, what, inbox=None, net=None):
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if inbox is not None:
             inbox.drain()
         if predicate():
             return
-        time.sleep(0.01)
+        if net is not None:
+            net.poll(0.01)
+        else:
+            time.sleep(0.01)
     raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
 
 
@@ -55,11 +59,12 @@ def test_inbox_runs_calls_in_order_and_survives_a_failing_one():
     assert inbox.errors == 1 and "ZeroDivisionError" in inbox.last_error
 
 
-def test_no_broker_is_a_bus_error_naming_the_address():
+@pytest.mark.parametrize("on_net", [False, True], ids=["paho thread", "net loop"])
+def test_no_broker_is_a_bus_error_naming_the_address(on_net):
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]   # bound, not listening: connections are refused
-        bus = PahoBus(f"mqtt://127.0.0.1:{port}", "lonely")
+        bus = PahoBus(f"mqtt://127.0.0.1:{port}", "lonely", net=NetLoop() if on_net else None)
         with pytest.raises(BusError, match=f"127.0.0.1:{port}"):
             bus.start(timeout_s=0.5)
 
@@ -141,6 +146,74 @@ def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
         while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
             pub.publish("cbtc/train/A/cmd", b"after restart")
             time.sleep(0.1)
+        pub.disconnect()
+        assert got and got[0] == b"after restart"
+    finally:
+        sub.disconnect()
+
+
+@pytest.mark.mosquitto
+def test_one_net_loop_reads_handles_and_answers_in_its_own_thread(mosquitto):
+    """No network thread: the loop's poll reads each socket, runs the callbacks here, and writes what a callback
+    published as soon as it returns; a failing callback is counted and the next message still handled."""
+    threads_before = threading.active_count()
+    net = NetLoop()
+    zc = PahoBus(mosquitto.url, "zc", net=net).start()
+    train = PahoBus(mosquitto.url, "train-A", status_topic="cbtc/train/A/status", net=net).start()
+    assert threading.active_count() == threads_before
+    try:
+        for bus in (zc, train):
+            assert bus._client.socket().getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
+        seen, answers = [], []
+
+        def on_report(topic, payload):
+            seen.append(threading.get_ident())
+            if payload == b"bad":
+                raise ValueError("a handler's bug")
+            zc.publish("cbtc/train/A/cmd", b"answer to " + payload)    # inside the callback: queued, then written
+
+        zc.subscribe("cbtc/train/+/report", on_report)
+        train.subscribe("cbtc/train/A/cmd", lambda t, p: answers.append(p))
+        for _ in range(20):   # the SUBACKs
+            net.poll(0.01)
+        for payload in (b"one", b"bad", b"two"):
+            train.publish("cbtc/train/A/report", payload)
+        wait_for(lambda: len(answers) == 2, 3.0, "two answers", net=net)
+        assert answers == [b"answer to one", b"answer to two"]
+        assert set(seen) == {threading.get_ident()} and len(seen) == 3
+        assert net.errors == 1 and "ValueError" in net.last_error
+        train.publish("cbtc/train/A/report", b"three")
+        deadline = time.monotonic() + 3.0
+        while len(seen) < 4 and time.monotonic() < deadline:
+            net.poll(0.05)
+        assert len(seen) == 4 and not zc._client.want_write()   # the answer left in the poll that read the report
+    finally:
+        train.disconnect()
+        zc.disconnect()
+    assert threading.active_count() == threads_before
+
+
+@pytest.mark.mosquitto
+def test_net_loop_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
+    net = NetLoop()
+    sub = PahoBus(mosquitto.url, "sub", reconnect_max_s=0.5, net=net).start()
+    connects = []
+    sub.on_connect = connects.append
+    got = []
+    sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
+    try:
+        mosquitto.kill()
+        wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed", net=net)
+        sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
+        assert sub.dropped == 1
+        mosquitto.start()
+        wait_for(lambda: sub.connected, 10.0, "reconnect", net=net)
+        assert connects == [sub] and sub.losses == 1 and sub.connects == 2
+        pub = PahoBus(mosquitto.url, "pub", net=net).start()
+        deadline = time.monotonic() + 5.0
+        while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
+            pub.publish("cbtc/train/A/cmd", b"after restart")
+            net.poll(0.1)
         pub.disconnect()
         assert got and got[0] == b"after restart"
     finally:

@@ -10,15 +10,17 @@ subscriber exactly as last set; reports and commands QoS 0, because each is supe
 onboard command watchdog, not the broker, makes a lost command safe (a redelivered old command would be stale
 anyway). See docs/protocol.md and docs/mqtt.md.
 
-Threads: paho calls back on its own thread. With an `Inbox`, incoming messages and (re)connect notices are queued
-there and run by whoever drains it (the scheduler thread, see cbtc.live), so controller and train code never runs
-concurrently with itself. Without an inbox, callbacks run on paho's thread.
+Threads: with a `NetLoop` (`net=`, what `cbtc zone`, `cbtc trains` and the benches use), there is no network thread:
+the loop's thread reads the socket and runs the callbacks, and a command published in answer to a report is written
+as the callback returns (cbtc.bus.net_loop). Without one, paho runs its own thread per connection; with an `Inbox`,
+incoming messages and (re)connect notices are queued there for whoever drains it, else callbacks run on paho's thread.
 """
 
 import collections
 import logging
 import socket
 import threading
+import time
 import urllib.parse
 
 import paho.mqtt.client as mqtt
@@ -96,7 +98,7 @@ class PahoBus(BusClient):
 
     def __init__(self, url: str, client_id: str, status_topic: str = None, username: str = None,
                  password: str = None, inbox: Inbox = None, keepalive_s: int = 5,
-                 reconnect_min_s: float = 0.2, reconnect_max_s: float = 2.0):
+                 reconnect_min_s: float = 0.2, reconnect_max_s: float = 2.0, net=None):
         host, port, url_user, url_password = parse_broker_url(url)
         self.host, self.port = host, port
         self.client_id = client_id
@@ -125,6 +127,10 @@ class PahoBus(BusClient):
         self._client.on_message = self._on_message
         self._keepalive_s = keepalive_s
         self._started = False
+        self._net = net                          # a NetLoop: no paho thread, the loop drives the socket
+        self._reconnect_s = (reconnect_min_s, reconnect_max_s)
+        self._retry_delay_s = reconnect_min_s
+        self._retry_due_s = None                 # when to open a lost connection again (net mode)
 
     # --- lifecycle ---------------------------------------------------------------------------------------------
 
@@ -132,10 +138,14 @@ class PahoBus(BusClient):
         """Connect (paho's thread keeps reconnecting from now on) and wait for the first CONNACK.
 
         Raises BusError if the broker refuses us (credentials, ACL) or does not answer within `timeout_s`."""
-        self._client.connect_async(self.host, self.port, keepalive=self._keepalive_s)
-        self._client.loop_start()
-        self._started = True
-        if not self._answered.wait(timeout_s):
+        if self._net is not None:
+            self._start_on_net(timeout_s)
+        else:
+            self._client.connect_async(self.host, self.port, keepalive=self._keepalive_s)
+            self._client.loop_start()
+            self._started = True
+            self._answered.wait(timeout_s)
+        if not self._answered.is_set():
             self._stop_loop()
             raise BusError(f"{self.client_id}: no MQTT broker answered at {self.host}:{self.port} within "
                            f"{timeout_s:g} s; start one (e.g. `cbtc broker config` + mosquitto -c) or fix --broker")
@@ -153,18 +163,84 @@ class PahoBus(BusClient):
         """Clean end: publish the retained `offline` status (if any), then DISCONNECT (the will is not sent)."""
         if self.status_topic is not None and self.connected:
             info = self._client.publish(self.status_topic, OFFLINE, qos=topic_qos(self.status_topic), retain=True)
-            try:
-                info.wait_for_publish(timeout=1.0)
-            except (RuntimeError, ValueError):
-                pass  # lost the connection meanwhile: the will says offline
+            if self._net is not None:
+                deadline_s = time.monotonic() + 1.0
+                while not info.is_published() and self.connected and time.monotonic() < deadline_s:
+                    self._net.poll(0.01)
+            else:
+                try:
+                    info.wait_for_publish(timeout=1.0)
+                except (RuntimeError, ValueError):
+                    pass  # lost the connection meanwhile: the will says offline
         self._client.disconnect()
         self._stop_loop()
         self._connected.clear()
 
     def _stop_loop(self):
-        if self._started:
+        if self._net is not None:
+            self._net.detach(self)
+            self._retry_due_s = None
+        elif self._started:
             self._client.loop_stop()
             self._started = False
+
+    # --- net mode: the NetLoop's thread drives the socket ----------------------------------------------------------
+
+    def _start_on_net(self, timeout_s: float) -> None:
+        """Connect, retrying with backoff while nothing listens, then run the net loop until the broker answers."""
+        deadline_s = time.monotonic() + timeout_s
+        self._client.connect_async(self.host, self.port, keepalive=self._keepalive_s)   # sets the address only
+        self._net.attach(self)
+        self._retry_due_s = time.monotonic()
+        while not self._answered.is_set() and time.monotonic() < deadline_s:
+            if self._retry_due_s is not None and time.monotonic() >= self._retry_due_s:
+                self._open(time.monotonic())
+            self._net.poll(min(0.05, max(0.0, deadline_s - time.monotonic())))
+
+    def _open(self, now_s: float) -> None:
+        """Open the connection (first time or again); on failure, try again after a doubled delay."""
+        try:
+            self._client.reconnect()
+        except OSError as exc:
+            self._retry_due_s = now_s + self._retry_delay_s
+            self._retry_delay_s = min(self._retry_delay_s * 2.0, self._reconnect_s[1])
+            log.debug("%s: connecting to %s:%d failed (%s)", self.client_id, self.host, self.port, exc)
+            return
+        self._retry_due_s = None
+        sock = self._client.socket()
+        if sock is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._net.socket_changed(self)
+        self._net.wants_write(self)    # the CONNECT, if the kernel did not take it at once
+
+    def net_socket(self):
+        return self._client.socket()
+
+    def net_read(self) -> None:
+        self._client.loop_read()
+        if self._client.want_write():
+            self._net.wants_write(self)
+        self._lost_check()
+
+    def net_wants_write(self) -> bool:
+        return self._client.socket() is not None and self._client.want_write()
+
+    def net_write(self) -> None:
+        self._client.loop_write()
+        self._lost_check()
+
+    def net_misc(self, now_s: float) -> None:
+        """Keepalive; and a lost connection opened again when its backoff delay is over."""
+        if self._client.socket() is not None:
+            self._client.loop_misc()
+            self._lost_check()
+        elif self._retry_due_s is not None and now_s >= self._retry_due_s:
+            self._open(now_s)
+
+    def _lost_check(self) -> None:
+        if self._client.socket() is None and self._retry_due_s is None and self._net is not None:
+            self._retry_due_s = time.monotonic() + self._retry_delay_s
+            self._net.socket_changed(self)
 
     # --- BusClient ---------------------------------------------------------------------------------------------
 
@@ -179,6 +255,8 @@ class PahoBus(BusClient):
         info = self._client.publish(topic, bytes(payload), qos=max(qos, topic_qos(topic)), retain=retain)
         if info.rc != mqtt.MQTT_ERR_SUCCESS:
             self.dropped += 1
+        if self._net is not None and self._client.want_write():
+            self._net.wants_write(self)   # published inside a callback: written when it returns
 
     def subscribe(self, topic_filter, callback):
         """Route messages matching `topic_filter` to `callback(topic, payload)`; kept across reconnects."""
@@ -213,6 +291,7 @@ class PahoBus(BusClient):
         if self.status_topic is not None:
             client.publish(self.status_topic, ONLINE, qos=topic_qos(self.status_topic), retain=True)
         self.connects += 1
+        self._retry_delay_s = self._reconnect_s[0]
         self.refusal = ""
         self._connected.set()
         self._answered.set()
@@ -231,6 +310,8 @@ class PahoBus(BusClient):
             if reason_code.is_failure:
                 self.losses += 1
                 log.warning("%s: lost the broker (%s); reconnecting", self.client_id, reason_code)
+        elif not self._answered.is_set() and self._net is not None:
+            self._lost_check()   # the broker closed before answering: try again after the backoff delay
 
     def _on_message(self, _client, _userdata, message):
         topic = message.topic
@@ -249,5 +330,8 @@ class PahoBus(BusClient):
             return
         try:
             fn(*args)
-        except Exception:  # a subscriber's bug must not kill paho's network thread
-            log.exception("%s: callback failed", self.client_id)
+        except Exception as exc:  # a subscriber's bug must not kill the network loop or paho's thread
+            if self._net is not None:
+                self._net.callback_failed(fn, exc)
+            else:
+                log.exception("%s: callback failed", self.client_id)

@@ -51,7 +51,7 @@ def run(args):
             user = train_user(spec.train_id)
             username, password = credentials(user, args.username, args.password, args.credentials)
             bus = PahoBus(args.broker, user, status_topic=wire.topic_status(spec.train_id), username=username,
-                          password=password, inbox=loop.inbox).start()
+                          password=password, net=loop.net).start()
             rng = np.random.default_rng([args.seed, index])
             offset_ms = int(rng.integers(0, 10_000_000))
             trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus, rng,

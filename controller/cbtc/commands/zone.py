@@ -68,7 +68,7 @@ def run(args):
     username, password = credentials("zc", args.username, args.password, args.credentials)
     loop = LiveLoop()
     bus = PahoBus(args.broker, f"zc-{args.zone_id}", status_topic=wire.topic_zone_status(args.zone_id),
-                  username=username, password=password, inbox=loop.inbox).start()
+                  username=username, password=password, net=loop.net).start()
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
     recording = None
@@ -86,7 +86,6 @@ def run(args):
     # shutdown: no more cycles or event-driven answers that could extend an authority, then stop every train
     cycle.cancel()
     bus.unsubscribe(wire.REPORT_FILTER)
-    loop.inbox.drain()
     zc.stop_all(loop.now_s())
     loop.pause(STOP_GRACE_S)
     bus.disconnect()
@@ -147,5 +146,5 @@ def _summary(zc, bus, loop, snapshot=None):
         row["measurements_dropped"] = state.measurements_dropped
     return {"session_id": zc.session_id, "cycles": zc.cycles, "unknown_reports": zc.unknown_reports,
             "invalid_reports": zc.invalid_reports, "broker_connects": bus.connects, "broker_losses": bus.losses,
-            "callback_errors": loop.inbox.errors, "trains": snapshot,
+            "callback_errors": loop.net.errors, "trains": snapshot,
             "refusals": {f"{train}/{klass}": n for (train, klass), n in sorted(zc.refusals.counts.items())}}

@@ -252,17 +252,17 @@ def _campaign(payloads, seed, url, progress, buses):
     rng = random.Random(seed)
     traffic = Traffic()
     traffic.now_s = loop.now_s
-    zc_bus = PahoBus(url, "zc-fuzz", status_topic=wire.topic_zone_status("fuzz"), inbox=loop.inbox).start()
+    zc_bus = PahoBus(url, "zc-fuzz", status_topic=wire.topic_zone_status("fuzz"), net=loop.net).start()
     buses.append(zc_bus)
     trains = []
     for index, spec in enumerate(config.trains):
         bus = PahoBus(url, "train-" + spec.train_id, status_topic=wire.topic_status(spec.train_id),
-                      inbox=loop.inbox).start()
+                      net=loop.net).start()
         buses.append(bus)
         train_rng = np.random.default_rng([seed, index])
         trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus,
                                    train_rng, int(train_rng.integers(0, 10_000_000))))
-    listener = PahoBus(url, "fuzz-listener", inbox=loop.inbox).start()
+    listener = PahoBus(url, "fuzz-listener", net=loop.net).start()
     buses.append(listener)
     listener.subscribe("cbtc/train/+/report", traffic.record)
     listener.subscribe("cbtc/train/+/cmd", traffic.record)
@@ -327,7 +327,7 @@ def _campaign(payloads, seed, url, progress, buses):
         "payloads": sent["n"],
         "by_class": sent["by_class"],
         "attack_s": round(attack_s + SILENCE_S, 1),
-        "uncaught_exceptions": watch.uncaught + loop.inbox.errors,
+        "uncaught_exceptions": watch.uncaught + loop.net.errors,
         "accepted_invalid": watch.accepted_invalid,
         "accepted_invalid_examples": watch.examples[:5],
         "moved_without_authority": sum(1 for mm in watch.drove_past_eoa_mm if mm > 0),

@@ -226,7 +226,7 @@ def _measure(args, layout, config, url):
     loop = LiveLoop()
     probe = ZcProbe()
     keys = {s.train_id: train_key(args.seed, s.train_id) for s in config.trains}
-    zc_bus = PahoBus(url, "zc-bench", status_topic=wire.topic_zone_status("bench"), inbox=loop.inbox).start()
+    zc_bus = PahoBus(url, "zc-bench", status_topic=wire.topic_zone_status("bench"), net=loop.net).start()
     ctx = multiprocessing.get_context("spawn")
     groups = [list(range(k, args.trains, args.train_procs)) for k in range(min(args.train_procs, args.trains))]
     pipes, children = [], []
@@ -285,7 +285,7 @@ def _trains_side(conn, url, layout_name, n_trains, indices, seed, rate_hz):
         for index in indices:
             spec = config.trains[index]
             bus = PahoBus(url, f"train-{spec.train_id}", status_topic=wire.topic_status(spec.train_id),
-                          inbox=loop.inbox).start()
+                          net=loop.net).start()
             buses.append(bus)
             rng = np.random.default_rng([seed, index])
             offset_ms = int(rng.integers(0, 10_000_000))

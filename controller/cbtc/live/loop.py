@@ -1,48 +1,40 @@
 """The wall-clock loop of a live run on a real broker, shared by `cbtc zone`, `cbtc trains` and `cbtc bench`.
 
-A `LiveLoop` runs an `InboxScheduler` in the main thread: messages that paho receives on its thread are queued in the
-bus `Inbox`, which wakes the scheduler; the scheduler runs them while it waits for its next task, so they are handled
-at once, in the scheduler's thread, never during a controller cycle or a train's loop. Ctrl-C (SIGINT) or SIGTERM
-ends the loop cleanly after the running task.
+A `LiveLoop` runs a `NetScheduler` in the main thread: while it waits for its next task it polls the `NetLoop` that
+every `PahoBus(net=loop.net)` of the process is attached to, so a message is read and handled in this thread the
+moment it arrives, never during a controller cycle or a train's loop, with no network thread and no hand-over between
+threads. Ctrl-C (SIGINT) or SIGTERM ends the loop cleanly after the running task.
 """
 
 import signal
-import sys
-import threading
 import time
 
-from cbtc.bus.paho_bus import Inbox
+from cbtc.bus.net_loop import NetLoop
 from cbtc.scheduler import RealtimeScheduler
 
 
-class InboxScheduler(RealtimeScheduler):
-    """The wall-clock scheduler (scheduler.RealtimeScheduler, unchanged in order and timing of its tasks) that,
-    while waiting for the next task, runs the calls other threads put in its `inbox`, woken by each put."""
+class NetScheduler(RealtimeScheduler):
+    """The wall-clock scheduler (scheduler.RealtimeScheduler, unchanged in order and timing of its tasks) that polls
+    its `net` loop while waiting for the next task."""
 
     def __init__(self, start_s: float = 0.0):
         super().__init__(start_s)
-        self._woken = threading.Event()
-        self.inbox = Inbox(notify=self._woken.set)
+        self.net = NetLoop()
 
     def _wait_until(self, t_s: float) -> None:
         while True:
-            self._woken.clear()
-            self.inbox.drain()
             remaining_s = t_s - (time.monotonic() - self._t0)
+            self.net.poll(max(0.0, remaining_s))
             if remaining_s <= 0 or self._stopped:
                 return
-            self._woken.wait(remaining_s)
 
 
 class LiveLoop:
-    """An InboxScheduler and the way to run it until Ctrl-C or for a duration."""
+    """A NetScheduler and the way to run it until Ctrl-C or for a duration."""
 
-    def __init__(self, gil_switch_s: float = 0.0005):
-        # paho's network threads must get the GIL soon after a publish from this thread (default 5 ms is a
-        # whole extra latency budget); a shorter switch interval costs little in a process that mostly waits
-        sys.setswitchinterval(gil_switch_s)
-        self.scheduler = InboxScheduler()
-        self.inbox = self.scheduler.inbox
+    def __init__(self):
+        self.scheduler = NetScheduler()
+        self.net = self.scheduler.net
         self.stopping = False
 
     def now_s(self) -> float:
