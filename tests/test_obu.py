@@ -5,6 +5,8 @@ import pytest
 
 from cbtc.firmware import obu
 from cbtc.protocol import wire
+from cbtc.railway import train_profile
+from cbtc.railway.train_profile import TrainProfile
 from fake_drivers import (
     BrokenSensor,
     FakeEncoder,
@@ -213,6 +215,22 @@ def test_a_stop_window_too_short_for_the_curves_and_a_fractional_encoder_scale_a
         make({"stop_window_mm": 3})
     with pytest.raises(ValueError, match="emergency_dec_mmps2 must exceed"):
         make({"emergency_dec_mmps2": 800})
+
+
+@pytest.mark.parametrize("beta_s, beta_e", [(0.8, 1.4), (1.0, 1.5), (1.2, 1.3), (0.5, 0.6)])
+def test_a_profiles_board_configuration_boots_with_its_stop_window_wide_enough(beta_s, beta_e):
+    """The stop window follows the profile: the firmware's default where it suffices, wider where the reaction time
+    would bring the service curve onto the trip curve (brisk service brakes close under the emergency rate)."""
+    assert train_profile.STOP_WINDOW_MM == obu.DEFAULTS["stop_window_mm"]
+    profile = TrainProfile(beta_s_mps2=beta_s, beta_e_mps2=beta_e)
+    unit = obu.OnboardUnit("A", KEY, 9, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print,
+                           profile.obu_config())
+    window_mm = unit.cfg["stop_window_mm"]
+    assert (window_mm == obu.DEFAULTS["stop_window_mm"]) == ((beta_s, beta_e) == (0.8, 1.4))   # the default profile
+    if window_mm > obu.DEFAULTS["stop_window_mm"]:   # widened no more than it must be
+        with pytest.raises(ValueError, match="stop_window_mm"):
+            obu.OnboardUnit("A", KEY, 9, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print,
+                            {**profile.obu_config(), "stop_window_mm": window_mm - 1})
 
 
 def test_with_timed_edges_the_speed_is_exact_and_fresh():

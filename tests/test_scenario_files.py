@@ -22,6 +22,9 @@ trains:
     start: {behind: A, gap_m: 0.2}
 faults:
   - {name: link_loss, train: B, at_s: 10, duration_s: 1}
+reference:
+  source: another simulator
+  mean_headway_s: 3.8
 """
 
 
@@ -40,6 +43,15 @@ def test_a_scenario_file_gives_every_train_its_profile_start_stops_and_dwell(tmp
     assert b.s0_m == pytest.approx(a.s0_m - 0.25 - 0.2)
     assert b.stops == ("main", "A", "B") and b.dwell_s is None   # every station when none are listed
     assert [f.name for f in config.faults] == ["link_loss"] and config.faults[0].params["train"] == "B"
+    assert config.reference == {"source": "another simulator", "mean_headway_s": 3.8}
+
+
+def test_compare_prints_a_scenarios_reference_figures_beside_the_testbeds(capsys):
+    """SUMO's case ships as a layout and a scenario file; compare sets SUMO's figures beside the same ones measured."""
+    assert main(["compare", "--scenario", "sumo_case", "--laps", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "Eclipse SUMO" in out and "mean_gap_following_m 0.593 (testbed " in out
+    assert "mean_headway_s 3.8 (testbed " in out and "None" not in out.split("Eclipse SUMO")[1].splitlines()[0]
 
 
 @pytest.mark.parametrize("change,line,named", [
@@ -60,6 +72,11 @@ def test_a_scenario_file_gives_every_train_its_profile_start_stops_and_dwell(tmp
     (("layout: itb_square", "layout: itb_squar"), 1, "layout 'itb_squar' not found"),
     (("    dwell_s: 2", "    dwell_s: 2\n    dwell_s: 3"), 9, "key 'dwell_s' is given twice (first on line 8)"),
     (("seed: 3", "seed: [3"), 3, "not valid YAML"),
+    (("mean_headway_s: 3.8", "mean_headway: 3.8"), 16,
+     "reference.mean_headway: unknown key; did you mean 'mean_headway_s'?"),
+    (("mean_headway_s: 3.8", "mean_headway_s: -1"), 16, "reference.mean_headway_s: must be >= 0"),
+    (("  source: another simulator\n", ""), 14, "reference.source: missing: say where the figures come from"),
+    (("  mean_headway_s: 3.8\n", ""), 14, "reference: gives no figure"),
 ])
 def test_every_mistake_names_the_file_line_key_and_fix(tmp_path, change, line, named):
     path = write(tmp_path, GOOD.replace(*change))

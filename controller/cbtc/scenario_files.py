@@ -18,7 +18,10 @@ from cbtc.zone.config import ScenarioConfig, TrainSpec
 from cbtc.zone.factory import make_policy
 
 TOP_KEYS = ("name", "description", "layout", "seed", "duration_s", "laps", "policy", "blocks", "estimator", "dwell_s",
-            "trains", "faults")
+            "trains", "faults", "reference")
+# figures a `reference:` may give, as `cbtc compare` measures them (cbtc.experiments.headway.system_figures)
+REFERENCE_FIGURES = ("mean_gap_m", "mean_gap_following_m", "min_gap_m", "mean_lap_s", "mean_headway_s",
+                     "trains_per_hour")
 TRAIN_KEYS = ("id", "start", "stops", "dwell_s", "profile")
 PROFILE_KEYS = tuple(f.name for f in fields(TrainProfile))
 POLICIES = ("moving_block", "fixed_block")
@@ -205,13 +208,29 @@ def scenario_from_dict(data, source="<dict>") -> ScenarioConfig:
     injected = _faults(r, data, [spec.train_id for spec in trains])
     config = ScenarioConfig(layout=layout, trains=trains, seed=seed, duration_s=duration_s, laps=laps, policy=policy,
                             estimator=estimator, dwell_s=dwell_s, policy_options=options, faults=injected,
-                            name=str(data.get("name") or os.path.basename(source)[:-5]))
+                            name=str(data.get("name") or os.path.basename(source)[:-5]),
+                            reference=_reference(r, data) if "reference" in data else None)
     if policy == "fixed_block":   # blocks the trains can move in (more than the trains on a loop)
         try:
             make_policy(config)
         except ConfigError as exc:
             r.fail(data, "blocks" if "blocks" in data else "policy", "policy", str(exc))
     return config
+
+
+def _reference(r, data):
+    """`reference:`: another system's figures on this case, and where they come from."""
+    ref = r.mapping(data, "reference", "reference", ("source",) + REFERENCE_FIGURES)
+    if not isinstance(ref.get("source"), str) or not ref["source"].strip():
+        r.fail(data, "reference", "reference.source", "missing: say where the figures come from, e.g. source: "
+               "Eclipse SUMO")
+    out = {"source": ref["source"].strip()}
+    for name in REFERENCE_FIGURES:
+        if name in ref:
+            out[name] = float(r.number(ref, name, f"reference.{name}", minimum=0.0))
+    if len(out) == 1:
+        r.fail(data, "reference", "reference", f"gives no figure; give one or more of {', '.join(REFERENCE_FIGURES)}")
+    return out
 
 
 def _trains(r, data, layout):

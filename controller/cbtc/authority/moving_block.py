@@ -24,10 +24,8 @@ from cbtc.authority.rules import (
     moving_block_distance_m,
 )
 from cbtc.authority.values import Authority, Situation
-from cbtc.firmware import obu
 
 _STANDING_MPS = 0.02
-_STOP_WINDOW_M = obu.DEFAULTS["stop_window_mm"] / 1000.0   # the onboard service curve ends this short of the limit
 
 
 class MovingBlockPolicy:
@@ -84,8 +82,8 @@ class MovingBlockPolicy:
         mode = "free"
         if self.takagi and sit.leader is not None:
             v_b = max(0.0, own.v_mps)
-            if v_b > _STANDING_MPS and distance_m <= minimum_gap_m(v_b, beta_s, 0.0) + _STOP_WINDOW_M \
-                    + self.sync_tolerance_m:
+            window_m = profile.stop_window_mm() / 1000.0   # the onboard service curve ends this short of the limit
+            if v_b > _STANDING_MPS and distance_m <= minimum_gap_m(v_b, beta_s, 0.0) + window_m + self.sync_tolerance_m:
                 mode = "sync"
                 beta_b = sync_deceleration_mps2(v_b, max(0.0, v_leader), beta_s)
                 horizon_s = sit.cycle_s + self.params.latency_s

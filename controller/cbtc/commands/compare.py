@@ -9,8 +9,9 @@ from cbtc.errors import ConfigError
 from cbtc.zone.config import paper_scenario
 
 COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_following_m", "gap following m"),
-           ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("trains_per_hour", "trains/h"),
-           ("collisions", "collisions"), ("authority_overruns", "overruns"), ("emergency_trips", "trips")]
+           ("min_gap_m", "min gap m"), ("mean_lap_s", "lap s"), ("mean_headway_s", "headway s"),
+           ("trains_per_hour", "trains/h"), ("collisions", "collisions"), ("authority_overruns", "overruns"),
+           ("emergency_trips", "trips")]
 
 
 FOLLOWING_COLUMNS = [("v", "B m/s"), ("report_ms", "reports ms"), ("achieved", "gap m"), ("theoretical", "S_min m"),
@@ -111,7 +112,7 @@ def run(args):
     result = {"layout": layout.name, "seed": args.seed, "scenario": base.name, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
               "following_by_speed": by_speed,
-              "block_sweep": sweep}
+              "block_sweep": sweep, "reference": base.reference}
     if args.plot:
         from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
@@ -130,6 +131,11 @@ def run(args):
     paper = base.name in (None, "paper_itb")
     print(f"moving block vs fixed block: gap -{cuts['gap_reduction_pct']} %{' (paper -52 %)' if paper else ''}, "
           f"lap time -{cuts['lap_reduction_pct']} %{' (paper -56 %)' if paper else ''}")
+    if base.reference:
+        ref = dict(base.reference)
+        source = ref.pop("source")
+        ours = systems[base.policy]
+        print(f"{source}: " + ", ".join(f"{name} {value:g} (testbed {ours.get(name)})" for name, value in ref.items()))
     print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed; floor: "
           "the ratio with a perfect speed loop and estimates (only the leader's travel since its data, k sigma and "
           "the stop window left); where the overhead goes, in cm, measured against truth")

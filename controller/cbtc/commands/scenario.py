@@ -32,6 +32,7 @@ def describe(config) -> dict:
                     "v_max_mps": t.profile.v_max_mps, "accel_max_mps2": t.profile.accel_max_mps2,
                     "beta_s_mps2": t.profile.beta_s_mps2} for t in config.trains],
         "faults": [str(f) for f in config.faults],
+        "reference": config.reference,
     }
 
 
@@ -50,6 +51,9 @@ def run_show(args):
                               ("accel_max_mps2", "accel m/s2"), ("beta_s_mps2", "brake m/s2")]))
     for fault in info["faults"]:
         print(f"fault: {fault}")
+    if info["reference"]:
+        ref = dict(info["reference"])
+        print(f"reference ({ref.pop('source')}): " + ", ".join(f"{k} {v:g}" for k, v in ref.items()))
     return 0
 
 

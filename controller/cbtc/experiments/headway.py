@@ -27,6 +27,40 @@ def followers(recorder):
     return [i for i in range(n) if recorder.ever_constrained[i]] or list(range(n))
 
 
+HEADWAY_STEP_M = 0.05
+
+
+def mean_headway_s(recorder, i):
+    """Train i's mean time headway (s) behind the train ahead of it on a loop: at points every 5 cm of the way it
+    ran, the time between the head of the train ahead passing the point and its own head passing it (what a detector
+    at each point would count), averaged over the points; None on an open line or before it reached any point."""
+    layout = recorder.layout
+    trains = recorder.sim.trains
+    if not layout.closed or len(trains) < 2:
+        return None
+    # the train ahead at the start: the nearest head in front (trains never overtake)
+    ahead = min((j for j in range(len(trains)) if j != i),
+                key=lambda j: layout.ahead_m(trains[i].s0_m, trains[j].s0_m) or layout.length_m)
+    t = np.asarray(recorder.t_s)
+    # distance along the way from train i's start: monotone (a roll back is passed again, not counted twice)
+    own = np.maximum.accumulate(np.asarray(recorder.travelled_m[i]))
+    lead = np.maximum.accumulate(np.asarray(recorder.travelled_m[ahead])) + layout.ahead_m(
+        trains[i].s0_m, trains[ahead].s0_m)
+    start_m, end_m = lead[0], min(own[-1], lead[-1])
+    if end_m <= start_m:
+        return None
+    points = np.arange(start_m + HEADWAY_STEP_M, end_m, HEADWAY_STEP_M)
+    if not len(points):
+        return None
+    return float(np.mean(_first_pass(points, own, t) - _first_pass(points, lead, t)))
+
+
+def _first_pass(points, distance_m, t_s):
+    """The first sample time at which a monotone `distance_m` reached each of `points`."""
+    k = np.searchsorted(distance_m, points, side="left")
+    return t_s[np.minimum(k, len(t_s) - 1)]
+
+
 def system_figures(recorder):
     """Gap, lap time, throughput and safety figures of one run: the gaps are those of the trains that followed
     (`followers`: train B of the paper scenario)."""
@@ -39,6 +73,7 @@ def system_figures(recorder):
     laps = [lap for i in range(len(recorder.sim.trains)) for lap in recorder.lap_times(i)]
     total_laps = sum(len(recorder.lap_times(i)) for i in range(len(recorder.sim.trains)))
     duration_s = float(t[-1]) if len(t) else 0.0
+    headways = [h for h in (mean_headway_s(recorder, i) for i in behind) if h is not None]
     return {
         "policy": summary["policy"],
         "mean_gap_m": round(float(np.mean(gap)), 3),
@@ -46,6 +81,7 @@ def system_figures(recorder):
         "following_time_pct": round(100.0 * float(np.mean(following)), 1),
         "min_gap_m": round(float(np.min(gap)), 3),
         "mean_lap_s": round(float(np.mean(laps)), 3) if laps else None,
+        "mean_headway_s": round(float(np.mean(headways)), 2) if headways else None,
         "trains_per_hour": round(3600.0 * total_laps / duration_s, 1) if duration_s else None,
         "max_speed_mps": round(top_mps, 3),
         "collisions": summary["collisions"],

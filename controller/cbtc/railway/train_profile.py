@@ -1,8 +1,11 @@
 """Train parameters: one profile per train, with LEGO-realistic defaults (SI units)."""
 
+import math
 from dataclasses import dataclass, fields, replace
 
 from cbtc.errors import ConfigError
+
+STOP_WINDOW_MM = 5   # the firmware's default stop window (firmware/obu.py DEFAULTS)
 
 
 @dataclass(frozen=True)
@@ -49,8 +52,9 @@ class TrainProfile:
                 raise ConfigError(f"train profile: {name} is a probability in [0, 1), got {getattr(self, name)}")
         if self.v_max_mps > self.v_noload_mps:
             raise ConfigError("train profile: v_max_mps must not exceed v_noload_mps (the motor cannot reach it)")
-        if self.beta_e_mps2 < self.beta_s_mps2:
-            raise ConfigError("train profile: beta_e_mps2 (emergency) must be >= beta_s_mps2 (service)")
+        if self.beta_e_mps2 <= self.beta_s_mps2:
+            raise ConfigError("train profile: beta_e_mps2 (emergency) must exceed beta_s_mps2 (service): the board's "
+                              "service curve must stay under its trip curve")
 
     def with_changes(self, **changes) -> "TrainProfile":
         unknown = set(changes) - {f.name for f in fields(self)}
@@ -58,9 +62,19 @@ class TrainProfile:
             raise ConfigError(f"train profile: unknown keys {sorted(unknown)}; known: {[f.name for f in fields(self)]}")
         return replace(self, **changes)
 
+    def stop_window_mm(self) -> int:
+        """Where the board's service curve ends short of the end of authority (mm): the firmware's default, or wider
+        where the reaction time would bring the service curve onto the trip curve (firmware/obu.py checks the same:
+        reaction^2 dec emergency / (2 (emergency - dec)))."""
+        r_s = int(round(self.reaction_s * 1000)) / 1000
+        dec, emergency = int(round(self.beta_s_mps2 * 1000)), int(round(self.beta_e_mps2 * 1000))
+        need_mm = r_s * r_s * dec * emergency / (2 * (emergency - dec)) if emergency > dec else math.inf
+        return max(STOP_WINDOW_MM, math.ceil(need_mm))
+
     def obu_config(self) -> dict:
         """The OnboardUnit configuration (integer mm / ms) that matches this profile."""
         return {
+            "stop_window_mm": self.stop_window_mm(),
             "counts_per_m": int(self.counts_per_m),
             "v_max_mmps": int(round(self.v_max_mps * 1000)),
             "v_noload_mmps": int(round(self.v_noload_mps * 1000)),

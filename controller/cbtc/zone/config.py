@@ -46,6 +46,7 @@ class ScenarioConfig:
     faults: tuple = ()               # cbtc.sim.faults.Fault values injected into the simulated world
     name: str = None                 # the scenario file's name, for titles
     source: str = None               # the scenario file or packaged name it was read from
+    reference: dict = None           # figures another system gives on this case ({"source": text, figure: value})
 
 
 def train_key(seed: int, train_id: str) -> bytes:
