@@ -399,9 +399,12 @@ class OnboardUnit:
             self.enc_fail_ms = None
         if self.command_valid(now_ms):
             cmd = self.cmd
-            v_cap = min(cmd["v_mmps"], cfg["v_max_mmps"])
-            acc = cmd["acc"]
-            dec = cmd["dec"]
+            # speeds and rates are true mm/s and mm/s^2; the loop runs on the odometer, which reads the command's
+            # low bound of its scale long or more: at most line speed in truth, and near it
+            scale = self.odo_scale()
+            v_cap = min(cmd["v_mmps"], cfg["v_max_mmps"]) * scale
+            acc = cmd["acc"] * scale
+            dec = cmd["dec"] * scale
             mode = "run"
         else:
             v_cap = 0

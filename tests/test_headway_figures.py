@@ -40,3 +40,31 @@ def test_no_headway_on_an_open_line_or_alone():
     t = np.arange(0.0, 5.0, 0.01)
     assert mean_headway_s(recorder(load_layout("straight_test"), [1.0, 0.5], [0.1 * t, 0.1 * t], t), 1) is None
     assert mean_headway_s(recorder(load_layout("sumo_square"), [1.0], [0.1 * t], t), 0) is None
+
+
+def test_the_minimum_leg_accelerates_cruises_and_brakes_or_turns_at_its_peak():
+    from cbtc.experiments.headway import minimum_leg_s
+    from cbtc.railway.train_profile import TrainProfile
+    p = TrainProfile(v_max_mps=0.5, accel_max_mps2=0.5, beta_s_mps2=1.0, beta_e_mps2=1.5)
+    # 0.25 m to reach line speed, 0.125 m to stop from it: 1.0 s + 0.5 s, the rest at 0.5 m/s
+    assert minimum_leg_s(1.375, p) == pytest.approx(1.0 + 0.5 + 1.0 / 0.5)
+    # too short to reach line speed: a triangle whose ramps meet at the peak speed
+    peak = (2 * 0.12 * 0.5 * 1.0 / 1.5) ** 0.5
+    assert minimum_leg_s(0.12, p) == pytest.approx(peak / 0.5 + peak / 1.0)
+
+
+@pytest.mark.parametrize("layout_name, profile", [
+    ("itb_square", {}),
+    ("sumo_square", {"v_max_mps": 0.5, "accel_max_mps2": 0.5, "beta_s_mps2": 1.0, "beta_e_mps2": 1.5}),
+])
+def test_a_train_alone_laps_within_3_percent_of_its_minimum_and_stops_on_the_mark(layout_name, profile):
+    """Line speed reached in truth (the speed loop runs on the odometer at the wheel's learnt scale), stops braked
+    onto the mark and held there through the dwell (no creeping up to it, no nudges when the estimate moves)."""
+    from cbtc.experiments.headway import lone_lap
+    from cbtc.railway.train_profile import TrainProfile
+    alone = lone_lap(load_layout(layout_name), TrainProfile(**profile), dwell_s=2.0, seed=0, laps=3)
+    assert alone["laps"] >= 2 and alone["collisions"] == 0 and alone["authority_overruns"] == 0
+    assert 1.0 < alone["lap_over_minimum"] <= 1.03, alone
+    line = alone["line_speed_mps"]
+    assert 0.99 * line <= alone["top_speed_mps"] <= 1.002 * line, alone
+    assert alone["stop_error_max_mm"] <= 10.0, alone

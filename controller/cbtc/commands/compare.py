@@ -80,6 +80,7 @@ def run(args):
         PAPER,
         block_sweep,
         check_block_counts,
+        lone_lap,
         reductions,
         run_systems,
         steady_following,
@@ -105,6 +106,10 @@ def run(args):
     check_block_counts(layout, counts, base=base)
     systems, recorders = run_systems(base, code_ber=args.code_ber)
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
+    alone = None
+    if layout.closed and layout.stations:   # the first train alone: its lap against the minimum for its profile
+        low_s, high_s = base.trains[0].dwell_s or base.dwell_s
+        alone = lone_lap(layout, base.trains[0].profile, dwell_s=low_s if low_s == high_s else 2.0, seed=args.seed)
     following = steady_following(layout, seed=args.seed)
     by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in report_periods]
     by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
@@ -112,7 +117,7 @@ def run(args):
     result = {"layout": layout.name, "seed": args.seed, "scenario": base.name, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
               "following_by_speed": by_speed,
-              "block_sweep": sweep, "reference": base.reference}
+              "block_sweep": sweep, "reference": base.reference, "alone": alone}
     if args.plot:
         from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
@@ -136,6 +141,12 @@ def run(args):
         source = ref.pop("source")
         ours = systems[base.policy]
         print(f"{source}: " + ", ".join(f"{name} {value:g} (testbed {ours.get(name)})" for name, value in ref.items()))
+    if alone is not None:
+        a = alone
+        print(f"train {base.trains[0].train_id} alone, {a['dwell_s']:g} s at every station: lap {a['lap_s']} s, "
+              f"the minimum for its profile {a['minimum_lap_s']} s ({a['lap_over_minimum']}x); top speed "
+              f"{a['top_speed_mps']} m/s (line {a['line_speed_mps']}); stops {a['stop_error_mean_mm']} mm from the "
+              f"mark on average, {a['stop_error_max_mm']} mm at most")
     print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed; floor: "
           "the ratio with a perfect speed loop and estimates (only the leader's travel since its data, k sigma and "
           "the stop window left); where the overhead goes, in cm, measured against truth")

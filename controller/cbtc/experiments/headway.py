@@ -4,6 +4,7 @@ Pure runners over `cbtc.sim.simulation`: each takes a seed and returns plain dic
 the tests and anyone's notebook get the same numbers.
 """
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -241,3 +242,73 @@ def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf", base: ScenarioC
         figures["block_length_m"] = round(base.layout.length_m / int(count), 3)
         rows.append(figures)
     return rows
+
+
+def minimum_leg_s(distance_m: float, profile) -> float:
+    """The least time (s) to run `distance_m` from standing to standing: accelerate at the profile's traction limit,
+    cruise at line speed, brake at its service rate (a triangle when the leg is too short to reach line speed)."""
+    a, b, v = profile.accel_max_mps2, profile.beta_s_mps2, profile.v_max_mps
+    ramps_m = v * v / (2 * a) + v * v / (2 * b)
+    if distance_m >= ramps_m:
+        return (distance_m - ramps_m) / v + v / a + v / b
+    peak = math.sqrt(2.0 * distance_m * a * b / (a + b))
+    return peak / a + peak / b
+
+
+def _stop_errors_mm(layout, t, v, head_s, stand_s=1.0, near_m=0.1):
+    """Where the train stood still for `stand_s` or more within `near_m` of a station: how far its head was past
+    the station's mark (mm; negative: short of it), one value a stop."""
+    errors, k, n = [], 0, len(t)
+    while k < n:
+        if v[k] > 0.0:
+            k += 1
+            continue
+        end = k
+        while end < n and v[end] <= 0.0:
+            end += 1
+        if t[end - 1] - t[k] >= stand_s:
+            past = [layout.wrap(head_s[k] - st.s_m + layout.length_m / 2) - layout.length_m / 2
+                    for st in layout.stations]
+            nearest = min(past, key=abs)
+            if abs(nearest) <= near_m:
+                errors.append(1000.0 * nearest)
+        k = end
+    return errors
+
+
+def lone_lap(layout, profile=None, dwell_s=2.0, seed=0, laps=4):
+    """One train alone on a loop, stopping `dwell_s` at every station: its lap time (laps after the first, which
+    starts from the start position) against the minimum-time lap for its profile (`minimum_leg_s` between
+    consecutive stations plus the dwells), its top speed against line speed, and how far from the mark it stops."""
+    if not layout.closed or not layout.stations:
+        raise ConfigError(f"layout {layout.name}: the lone lap needs a loop with stations")
+    profile = profile or TrainProfile()
+    stations = sorted(st.s_m for st in layout.stations)
+    legs = [layout.ahead_m(a, b) or layout.length_m for a, b in zip(stations, stations[1:] + stations[:1])]
+    minimum_s = sum(minimum_leg_s(d, profile) for d in legs) + dwell_s * len(legs)
+    # it starts halfway along the longest leg: laps are counted where it runs, not where a stop a mm short of the
+    # line would count the dwell into the lap before or after
+    k = max(range(len(legs)), key=legs.__getitem__)
+    start_m = layout.wrap(stations[k] + legs[k] / 2.0)
+    config = ScenarioConfig(layout=layout, seed=seed, duration_s=(laps + 1) * 2.0 * minimum_s, laps=laps,
+                            dwell_s=(dwell_s, dwell_s),
+                            trains=[TrainSpec("A", start_m, tuple(st.name for st in layout.stations), profile)])
+    sim = Simulation(config, keep_samples=True)
+    recorder = sim.run()
+    times = recorder.lap_times(0)[1:]
+    t = np.asarray(recorder.t_s)
+    v = np.asarray(recorder.v_mps[0])
+    errors_mm = _stop_errors_mm(layout, t, v, np.asarray(recorder.head_s_m[0]))
+    lap_s = float(np.mean(times)) if times else None
+    summary = recorder.summary()
+    return {
+        "layout": layout.name, "dwell_s": dwell_s, "laps": len(times),
+        "lap_s": None if lap_s is None else round(lap_s, 3),
+        "minimum_lap_s": round(minimum_s, 3),
+        "lap_over_minimum": None if lap_s is None else round(lap_s / minimum_s, 4),
+        "top_speed_mps": round(float(v.max()), 4), "line_speed_mps": profile.v_max_mps,
+        "station_stops": summary["trains"][0]["station_stops"],
+        "stop_error_mean_mm": round(float(np.mean(np.abs(errors_mm))), 1) if errors_mm else None,
+        "stop_error_max_mm": round(float(np.max(np.abs(errors_mm))), 1) if errors_mm else None,
+        "collisions": summary["collisions"], "authority_overruns": summary["authority_overruns"],
+    }

@@ -39,6 +39,7 @@ DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this 
 _SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true metre a wheel can have: the band
 _SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
 _NO_MORE_STOPS = ""   # next_stop of a train past the last of its stops on a line
+_STANDING_MMPS = 30   # slower than this, braked or not counting: standing, for the dwell (the board's creep speed)
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
 
@@ -69,6 +70,7 @@ class TrainState:
         self.next_stop = None        # station name or None
         self.leaving = None          # the station whose dwell just ended, until the train is past it
         self.dwell_until_s = None
+        self.odo_moved = True        # the newest report's odometer differs from the one before (or it is the first)
         self.dwells = 0
         self.limit_s = None          # current authority limit along the track (m), for supervision
         self.safe_m = None           # distance the safety limit allowed at the last command (m)
@@ -300,6 +302,7 @@ class ZoneController:
             if not self._filter_healthy(state):
                 self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
                                    "updating its filter", payload, recv_s)
+        state.odo_moved = previous is None or report["odo_mm"] != previous["odo_mm"]
         state.report = report
         if state.report_recv_s is None:
             self._unheard -= 1
@@ -517,7 +520,12 @@ class ZoneController:
             return None
         station = self.layout.station(state.next_stop)
         to_stop_m = self._signed_ahead(est.s_m, station.s_m)
-        standing = state.report["v_mmps"] == 0
+        # standing: no speed; or slower than the board's creep speed and braked (no drive: it stops within a loop)
+        # or with no count since the report before (the board's speed decays for a while after its last edge;
+        # waiting for it to reach 0 only delays the dwell)
+        report = state.report
+        standing = report["v_mmps"] == 0 or (report["v_mmps"] < _STANDING_MMPS and (
+            report["duty"] == 0 or not state.odo_moved))
         if state.dwell_until_s is not None:
             if now_s >= state.dwell_until_s:
                 state.dwell_until_s = None
@@ -525,7 +533,7 @@ class ZoneController:
                 state.leaving = station.name
                 state.next_stop = self._next_station(station.s_m + 0.01, stops)
                 return None
-            return to_stop_m
+            return 0.0   # dwelling: held where it stands (the estimate moving by a mm must not start it again)
         if state.leaving is not None:
             # the station just left may be the next one too (a one-station list): no stop there, and no overrun,
             # until the train is past it (its distance then runs the long way round)
@@ -535,7 +543,7 @@ class ZoneController:
         if standing and abs(to_stop_m) <= station.window_m:
             low, high = state.setup.dwell_s
             state.dwell_until_s = now_s + self._rng.uniform(low, high)
-            return to_stop_m
+            return 0.0
         if to_stop_m < -station.window_m:
             # passed the stop point beyond its window: count it and move on rather than reverse
             state.stop_overruns += 1
