@@ -54,7 +54,6 @@ _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
 _US_WRAP = const(262144000)   # edge times (us) wrap with the board's ms at 2^18: small ints; spans are < 1 s
 _LEFT_SIDS = const(4)    # sessions remembered as left: a replayed command of any of them is refused
 _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
-_LAND_MM = const(5)      # a train this close to its station stop target and slower than _CREEP_MMPS has arrived (mm)
 _ENC_COUNTS = const(3)   # counts the train surely travelled without one coming: the encoder has failed
 _ADHESION_MMPS2 = const(3000)  # no train stops faster than this (wheel adhesion): counts must keep coming (mm/s^2)
 _ENC_HOLD_MS = const(2000)     # a failed encoder holds the train braked this long after its last sign (ms)
@@ -353,13 +352,11 @@ class OnboardUnit:
         curve above it, which supervises the end of authority alone (a station stop is service, not safety)."""
         end_mm = self.eoa_mm - self.cfg["stop_window_mm"] * self.odo_scale()
         cmd = self.cmd
-        at_stop = False
         if cmd is not None and cmd["stop_mm"] < end_mm:   # the stop target of the newest command (a station)
             end_mm = cmd["stop_mm"]
-            at_stop = True
         dist_mm = end_mm - self.odo_mm
-        if dist_mm <= 0 or (at_stop and dist_mm <= _LAND_MM and self.v_mmps < _CREEP_MMPS):
-            return 0.0   # a station stop a few mm short is on the mark: held, not driven again to creep up to it
+        if dist_mm <= 0:
+            return 0.0
         v = sqrt(2.0 * dec_mmps2 * self.odo_scale() * dist_mm)
         return v if v >= _CREEP_MMPS else 0.0   # the last fraction of a mm: stop and hold rather than creep
 

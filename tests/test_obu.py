@@ -431,21 +431,3 @@ def test_an_end_of_authority_further_ahead_than_any_line_is_refused_and_the_one_
     assert bench.unit.eoa_mm == 5000 and "max_authority_mm" in bench.unit.last_reject and bench.unit.rejected == 1
     bench.command(eoa_mm=odo_mm + limit_mm)
     assert bench.unit.eoa_mm == odo_mm + limit_mm
-
-
-def test_a_train_stopped_a_few_mm_short_of_its_station_is_held_not_crept_up():
-    """Standing within 5 mm of a station's stop target the train has arrived: no drive to creep the last mm. The end
-    of authority is not a station: short of it the service curve still drives the train on (its stop window is the
-    board's own)."""
-    bench = Bench()
-    bench.step()
-    unit = bench.unit
-    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=4, ttl_ms=10_000)   # standing 4 mm short of the station
-    for _ in range(10):
-        bench.step()
-    assert unit.braking_curve_mmps(unit.cfg["dec_mmps2"]) == 0.0 and bench.motor.mode == "brake"
-    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=12, ttl_ms=10_000)   # 12 mm short: driven up to it
-    assert unit.braking_curve_mmps(unit.cfg["dec_mmps2"]) > 100.0
-    window = unit.cfg["stop_window_mm"]
-    bench.command(v_mmps=500, eoa_mm=window + 4, stop_mm=3000, ttl_ms=10_000)   # 4 mm from the end of authority
-    assert unit.braking_curve_mmps(unit.cfg["dec_mmps2"]) > 0.0
