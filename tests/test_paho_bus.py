@@ -127,25 +127,30 @@ def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto
 
 
 @pytest.mark.mosquitto
-def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
-    sub = PahoBus(mosquitto.url, "sub", reconnect_max_s=0.5).start()
+@pytest.mark.parametrize("on_net", [False, True], ids=["paho thread", "net loop"])
+def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto, on_net):
+    net = NetLoop() if on_net else None
+    sub = PahoBus(mosquitto.url, "sub", reconnect_max_s=0.5, net=net).start()
     connects = []
     sub.on_connect = connects.append
     got = []
     sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
     try:
         mosquitto.kill()
-        wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed")
+        wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed", net=net)
         sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
         assert sub.dropped == 1
         mosquitto.start()
-        wait_for(lambda: sub.connected, 10.0, "reconnect")
+        wait_for(lambda: sub.connected, 10.0, "reconnect", net=net)
         assert connects == [sub] and sub.losses == 1 and sub.connects == 2
-        pub = PahoBus(mosquitto.url, "pub").start()
+        pub = PahoBus(mosquitto.url, "pub", net=net).start()
         deadline = time.monotonic() + 5.0
         while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
             pub.publish("cbtc/train/A/cmd", b"after restart")
-            time.sleep(0.1)
+            if net is not None:
+                net.poll(0.1)
+            else:
+                time.sleep(0.1)
         pub.disconnect()
         assert got and got[0] == b"after restart"
     finally:
@@ -191,30 +196,3 @@ def test_one_net_loop_reads_handles_and_answers_in_its_own_thread(mosquitto):
         train.disconnect()
         zc.disconnect()
     assert threading.active_count() == threads_before
-
-
-@pytest.mark.mosquitto
-def test_net_loop_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
-    net = NetLoop()
-    sub = PahoBus(mosquitto.url, "sub", reconnect_max_s=0.5, net=net).start()
-    connects = []
-    sub.on_connect = connects.append
-    got = []
-    sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
-    try:
-        mosquitto.kill()
-        wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed", net=net)
-        sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
-        assert sub.dropped == 1
-        mosquitto.start()
-        wait_for(lambda: sub.connected, 10.0, "reconnect", net=net)
-        assert connects == [sub] and sub.losses == 1 and sub.connects == 2
-        pub = PahoBus(mosquitto.url, "pub", net=net).start()
-        deadline = time.monotonic() + 5.0
-        while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
-            pub.publish("cbtc/train/A/cmd", b"after restart")
-            net.poll(0.1)
-        pub.disconnect()
-        assert got and got[0] == b"after restart"
-    finally:
-        sub.disconnect()
