@@ -5,7 +5,7 @@ the filter's update time, memory growth and start-up, each beside its reference 
 import argparse
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import format_table, module_doc, print_json
+from cbtc.commands.common import add_mqtt_client_arg, format_table, module_doc, print_json
 from cbtc.errors import ConfigError
 
 EXAMPLES = (
@@ -44,6 +44,7 @@ def register(sub):
     lat.add_argument("--layout", type=arg_types.layout, default=None,
                      help="layout (default: a LEGO oval long enough for the trains)")
     lat.add_argument("--seed", type=arg_types.seed, default=0)
+    add_mqtt_client_arg(lat)
     lat.add_argument("--json", action="store_true", help="print the figures as JSON")
     lat.set_defaults(func=run_latency)
     sim = _speed_parser(bench_sub, "sim", "simulated seconds per wall second, beside a do-nothing controller")

@@ -106,6 +106,13 @@ def add_connection_args(p, broker_default=None) -> None:
     p.add_argument("--password", default=None, help=f"broker password (default: ${ENV_PASSWORD})")
     p.add_argument("--credentials", type=arg_types.input_file, default=None, metavar="FILE",
                    help="credentials.json from `cbtc broker config`: each client logs in as its own user")
+    add_mqtt_client_arg(p)
+
+
+def add_mqtt_client_arg(p) -> None:
+    """--mqtt-client: the lean client (default) or paho, the reference (cbtc.bus.clients)."""
+    p.add_argument("--mqtt-client", choices=("lean", "paho"), default="lean",
+                   help="MQTT client: lean (default; a fraction of paho's work per message) or paho (the reference)")
 
 
 def add_fleet_args(p) -> None:

@@ -10,7 +10,7 @@ import logging
 import sys
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import module_doc, print_json
+from cbtc.commands.common import add_mqtt_client_arg, module_doc, print_json
 
 MAX_PAYLOADS = 1_000_000
 
@@ -24,6 +24,7 @@ def register(sub):
     p.add_argument("--payloads", type=arg_types.whole(1, MAX_PAYLOADS), default=10000,
                    help="bad payloads to throw (default 10000)")
     p.add_argument("--seed", type=arg_types.seed, default=0, help="seed of the payloads and the trains (default 0)")
+    add_mqtt_client_arg(p)
     p.add_argument("--json", action="store_true", help="print the figures as JSON")
     p.set_defaults(func=run)
 
@@ -42,9 +43,9 @@ def run(args):
             task = bar.add_task("fuzz", total=None, sent=0)
             result = fuzz.run_fuzz(args.payloads, args.seed, args.broker,
                                    lambda done_s, total_s, sent: bar.update(task, completed=done_s, total=total_s,
-                                                                            sent=sent))
+                                                                            sent=sent), client=args.mqtt_client)
     else:
-        result = fuzz.run_fuzz(args.payloads, args.seed, args.broker)
+        result = fuzz.run_fuzz(args.payloads, args.seed, args.broker, client=args.mqtt_client)
     if args.json:
         print_json(result)
     else:

@@ -36,7 +36,7 @@ def run(args):
     import numpy as np
 
     from cbtc.bus.broker_config import train_user
-    from cbtc.bus.paho_bus import PahoBus
+    from cbtc.bus.clients import start_bus
     from cbtc.live.loop import LiveLoop
     from cbtc.protocol import wire
     from cbtc.sim.truth import TruthMonitor
@@ -50,8 +50,8 @@ def run(args):
         for index, spec in enumerate(config.trains):
             user = train_user(spec.train_id)
             username, password = credentials(user, args.username, args.password, args.credentials)
-            bus = PahoBus(args.broker, user, status_topic=wire.topic_status(spec.train_id), username=username,
-                          password=password, net=loop.net).start()
+            bus = start_bus(args.mqtt_client, args.broker, user, loop.net,
+                            status_topic=wire.topic_status(spec.train_id), username=username, password=password)
             rng = np.random.default_rng([args.seed, index])
             offset_ms = int(rng.integers(0, 10_000_000))
             trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus, rng,

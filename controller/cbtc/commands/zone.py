@@ -55,7 +55,7 @@ def register(sub):
 
 
 def run(args):
-    from cbtc.bus.paho_bus import PahoBus
+    from cbtc.bus.clients import start_bus
     from cbtc.live.loop import LiveLoop
     from cbtc.protocol import wire
     from cbtc.zone.factory import build_zone
@@ -67,8 +67,8 @@ def run(args):
     config.estimator = args.estimator or config.estimator
     username, password = credentials("zc", args.username, args.password, args.credentials)
     loop = LiveLoop()
-    bus = PahoBus(args.broker, f"zc-{args.zone_id}", status_topic=wire.topic_zone_status(args.zone_id),
-                  username=username, password=password, net=loop.net).start()
+    bus = start_bus(args.mqtt_client, args.broker, f"zc-{args.zone_id}", loop.net,
+                    status_topic=wire.topic_zone_status(args.zone_id), username=username, password=password)
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
     recording = None

@@ -30,6 +30,7 @@ import tempfile
 import numpy as np
 
 from cbtc.bus.broker_config import MosquittoProcess
+from cbtc.bus.clients import start_bus
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.layout_files import load_layout
 from cbtc.live.loop import LiveLoop
@@ -227,16 +228,17 @@ class Watch:
                                      f"session {cmd['sid']} seq {cmd['seq']} rseq {cmd['rseq']}")
 
 
-def run_fuzz(payloads: int, seed: int, broker_url: str = None, progress=None) -> dict:
-    """Run the campaign (see the module); `progress(elapsed_s, total_s, payloads_sent)` is called four times a
-    second (it takes warm-up + attack + silence + recovery seconds of wall time)."""
+def run_fuzz(payloads: int, seed: int, broker_url: str = None, progress=None, client: str = "lean") -> dict:
+    """Run the campaign (see the module) with the controller, the trains and the listener on MQTT client `client`
+    (cbtc.bus.clients); `progress(elapsed_s, total_s, payloads_sent)` is called four times a second (it takes
+    warm-up + attack + silence + recovery seconds of wall time)."""
     broker = None
     if broker_url is None:
         broker = MosquittoProcess.open_broker(tempfile.mkdtemp(prefix="cbtc-fuzz-")).start()
         broker_url = broker.url
     buses = []
     try:
-        return _campaign(payloads, seed, broker_url, progress, buses)
+        return _campaign(payloads, seed, broker_url, progress, buses, client)
     finally:
         for bus in buses:
             bus.disconnect()
@@ -244,7 +246,7 @@ def run_fuzz(payloads: int, seed: int, broker_url: str = None, progress=None) ->
             broker.kill()
 
 
-def _campaign(payloads, seed, url, progress, buses):
+def _campaign(payloads, seed, url, progress, buses, client):
     layout = load_layout("itb_square")
     config = paper_scenario(layout, seed=seed, laps=1000)
     keys = {s.train_id: train_key(seed, s.train_id) for s in config.trains}
@@ -252,21 +254,20 @@ def _campaign(payloads, seed, url, progress, buses):
     rng = random.Random(seed)
     traffic = Traffic()
     traffic.now_s = loop.now_s
-    zc_bus = PahoBus(url, "zc-fuzz", status_topic=wire.topic_zone_status("fuzz"), net=loop.net).start()
+    zc_bus = start_bus(client, url, "zc-fuzz", loop.net, status_topic=wire.topic_zone_status("fuzz"))
     buses.append(zc_bus)
     trains = []
     for index, spec in enumerate(config.trains):
-        bus = PahoBus(url, "train-" + spec.train_id, status_topic=wire.topic_status(spec.train_id),
-                      net=loop.net).start()
+        bus = start_bus(client, url, "train-" + spec.train_id, loop.net, status_topic=wire.topic_status(spec.train_id))
         buses.append(bus)
         train_rng = np.random.default_rng([seed, index])
         trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus,
                                    train_rng, int(train_rng.integers(0, 10_000_000))))
-    listener = PahoBus(url, "fuzz-listener", net=loop.net).start()
+    listener = start_bus(client, url, "fuzz-listener", loop.net)
     buses.append(listener)
     listener.subscribe("cbtc/train/+/report", traffic.record)
     listener.subscribe("cbtc/train/+/cmd", traffic.record)
-    stranger = PahoBus(url, "stranger").start()
+    stranger = PahoBus(url, "stranger").start()   # paho's own thread: it throws while the loop runs
     buses.append(stranger)
     zc = build_zone(config, keys, zc_bus, loop.now_s, zone_id="fuzz", seed=seed)
     watch = Watch(zc, trains)

@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 from cbtc.bus.broker_config import MosquittoProcess
-from cbtc.bus.paho_bus import PahoBus
+from cbtc.bus.clients import start_bus
 from cbtc.errors import BusError
 from cbtc.experiments.ping_pong import ping_pong
 from cbtc.layout_files import load_layout
@@ -220,6 +220,7 @@ def run_latency(args) -> dict:
     ours, ref = result["report_to_cmd_ms"], reference["round_trip_ms"]
     result.update({"broker": "embedded mosquitto" if broker is not None else url, "trains": args.trains,
                    "layout": layout.name, "duration_s": args.duration, "rate_hz": args.rate,
+                   "mqtt_client": getattr(args, "mqtt_client", "lean"),
                    # measured: the rate asked, or 50 Hz from a followed train within the controller's report budget
                    "report_hz": round(result["reports_published"] / (args.duration * args.trains), 1),
                    "controller_cycle_hz": round(1.0 / config.cycle_s, 3),
@@ -237,14 +238,15 @@ def _measure(args, layout, config, url):
     loop = LiveLoop()
     probe = ZcProbe()
     keys = {s.train_id: train_key(args.seed, s.train_id) for s in config.trains}
-    zc_bus = PahoBus(url, "zc-bench", status_topic=wire.topic_zone_status("bench"), net=loop.net).start()
+    client = getattr(args, "mqtt_client", "lean")
+    zc_bus = start_bus(client, url, "zc-bench", loop.net, status_topic=wire.topic_zone_status("bench"))
     ctx = multiprocessing.get_context("spawn")
     groups = [list(range(k, args.trains, args.train_procs)) for k in range(min(args.train_procs, args.trains))]
     pipes, children = [], []
     for group in groups:
         here, there = ctx.Pipe()
         child = ctx.Process(target=_trains_side, daemon=True,
-                            args=(there, url, args.layout, args.trains, group, args.seed, args.rate))
+                            args=(there, url, args.layout, args.trains, group, args.seed, args.rate, client))
         child.start()
         pipes.append(here)
         children.append(child)
@@ -285,7 +287,7 @@ def _measure(args, layout, config, url):
     return result
 
 
-def _trains_side(conn, url, layout_name, n_trains, indices, seed, rate_hz):
+def _trains_side(conn, url, layout_name, n_trains, indices, seed, rate_hz, client):
     """A trains process: the virtual trains `indices` of the fleet, with probes; sends its timestamps to `conn`."""
     buses = []
     try:
@@ -295,8 +297,8 @@ def _trains_side(conn, url, layout_name, n_trains, indices, seed, rate_hz):
         trains = []
         for index in indices:
             spec = config.trains[index]
-            bus = PahoBus(url, f"train-{spec.train_id}", status_topic=wire.topic_status(spec.train_id),
-                          net=loop.net).start()
+            bus = start_bus(client, url, f"train-{spec.train_id}", loop.net,
+                            status_topic=wire.topic_status(spec.train_id))
             buses.append(bus)
             rng = np.random.default_rng([seed, index])
             offset_ms = int(rng.integers(0, 10_000_000))

@@ -1,0 +1,182 @@
+"""The lean MQTT client: its packets against the 3.1.1 layout, the parser fed in any chunks, and against a real
+Mosquitto, beside paho: routing both ways, retained status and last will, reconnect with resubscribe, refusal,
+QoS 1 acknowledged, and a handler's answer written in the poll that read the message."""
+
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cbtc.bus import mqtt_packets as mp
+from cbtc.bus.client import BusClient
+from cbtc.bus.lean_bus import LeanBus
+from cbtc.bus.net_loop import NetLoop
+from cbtc.bus.paho_bus import PahoBus
+from cbtc.errors import BusError
+
+
+def poll_until(net, predicate, timeout_s, what):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        net.poll(0.01)
+    raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+
+
+def test_packets_have_the_3_1_1_layout():
+    assert mp.publish("a/b", b"xy") == b"\x30\x07\x00\x03a/bxy"
+    assert mp.publish("a", b"", qos=1, retain=True, packet_id=258) == b"\x33\x05\x00\x01a\x01\x02"
+    assert mp.publish("t", b"x" * 200)[:3] == b"\x30\xcb\x01"    # 203 bytes: two length bytes, low 7 bits first
+    assert mp.puback(7) == b"\x40\x02\x00\x07"
+    assert mp.subscribe(1, [("a/+", 0), ("s", 1)]) == b"\x82\x0c\x00\x01\x00\x03a/+\x00\x00\x01s\x01"
+    assert mp.unsubscribe(2, ["a/+"]) == b"\xa2\x07\x00\x02\x00\x03a/+"
+    assert mp.pingreq() == b"\xc0\x00" and mp.disconnect() == b"\xe0\x00"
+    connect = mp.connect("zc", 5, will=("s", b"off", 1, True), username="u", password="p")
+    assert connect == (b"\x10\x1c\x00\x04MQTT\x04\xee\x00\x05" + b"\x00\x02zc" + b"\x00\x01s\x00\x03off"
+                       + b"\x00\x01u\x00\x01p")
+    assert mp.connect("x", 60)[8:10] == b"\x04\x02"   # clean session alone
+    assert mp.parse_publish(0x33, b"\x00\x01a\x01\x02xyz") == ("a", b"xyz", 1, 258, True)
+    with pytest.raises(mp.ProtocolError):
+        mp.parse_publish(0x34, b"\x00\x01a\x00\x01")     # QoS 2: never subscribed to
+    with pytest.raises(mp.ProtocolError):
+        mp.split(bytearray(b"\x30\xff\xff\xff\xff\x01"))   # a length of five bytes
+
+
+@settings(max_examples=200, deadline=None)
+@given(messages=st.lists(st.tuples(st.sampled_from(["cbtc/train/A/report", "a", "x/y/z"]), st.binary(max_size=300),
+                                   st.integers(0, 1)), min_size=1, max_size=8),
+       cuts=st.lists(st.integers(1, 64), max_size=40))
+def test_the_parser_gives_back_every_packet_whatever_chunks_the_bytes_come_in(messages, cuts):
+    stream = b"".join(mp.publish(t, p, q, False, 9 if q else 0) for t, p, q in messages)
+    buffer, got, pos = bytearray(), [], 0
+    for n in cuts + [len(stream)]:
+        buffer += stream[pos:pos + n]
+        pos += n
+        got += [mp.parse_publish(first, body)[:3] for first, body in mp.split(buffer)]
+    assert got == [(t, p, q) for t, p, q in messages] and not buffer
+
+
+def test_no_broker_is_a_bus_error_naming_the_address():
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]   # bound, not listening: connections are refused
+        bus = LeanBus(f"mqtt://127.0.0.1:{port}", "lonely", net=NetLoop())
+        with pytest.raises(BusError, match=f"127.0.0.1:{port}"):
+            bus.start(timeout_s=0.5)
+
+
+@pytest.mark.mosquitto
+def test_lean_and_paho_clients_talk_both_ways_and_the_answer_leaves_in_the_poll_that_read_the_message(mosquitto):
+    threads_before = threading.active_count()
+    net = NetLoop()
+    zc = LeanBus(mosquitto.url, "zc", net=net).start()
+    train = PahoBus(mosquitto.url, "train-A", status_topic="cbtc/train/A/status", net=net).start()
+    assert isinstance(zc, BusClient) and zc.connected and threading.active_count() == threads_before
+    try:
+        assert zc.net_socket().getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
+        seen, answers = [], []
+
+        def on_report(topic, payload):
+            seen.append((topic, threading.get_ident()))
+            if payload == b"bad":
+                raise ValueError("a handler's bug")
+            zc.publish("cbtc/train/A/cmd", b"answer to " + payload)
+
+        zc.subscribe("cbtc/train/+/report", on_report)
+        train.subscribe("cbtc/train/A/cmd", lambda t, p: answers.append(p))
+        for _ in range(20):   # the SUBACKs
+            net.poll(0.01)
+        for payload in (b"one", b"bad", b"two" * 100):
+            train.publish("cbtc/train/A/report", payload)
+        train.publish("cbtc/train/A/cmd_not_a_report", b"not for the filter")
+        poll_until(net, lambda: len(answers) == 2, 3.0, "two answers")
+        assert answers == [b"answer to one", b"answer to " + b"two" * 100]
+        assert {ident for _, ident in seen} == {threading.get_ident()} and len(seen) == 3
+        assert net.errors == 1 and "ValueError" in net.last_error
+        train.publish("cbtc/train/A/report", b"three")
+        poll_until(net, lambda: len(seen) == 4, 3.0, "the fourth report")
+        assert not zc.net_wants_write()   # its answer left in the poll that read the report
+        zc.unsubscribe("cbtc/train/+/report")
+        for _ in range(20):
+            net.poll(0.01)
+        train.publish("cbtc/train/A/report", b"four")
+        for _ in range(30):
+            net.poll(0.01)
+        assert len(seen) == 4
+    finally:
+        train.disconnect()
+        zc.disconnect()
+    assert threading.active_count() == threads_before
+
+
+@pytest.mark.mosquitto
+def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto):
+    net = NetLoop()
+    watcher = LeanBus(mosquitto.url, "watcher", net=net).start()
+    seen = []
+    watcher.subscribe("cbtc/train/+/status", lambda t, p: seen.append((t, p)))
+    try:
+        bus = LeanBus(mosquitto.url, "train-A", status_topic="cbtc/train/A/status", net=net).start()
+        poll_until(net, lambda: ("cbtc/train/A/status", b"online") in seen, 3.0, "online")
+        bus.disconnect()
+        assert not bus._unacked   # the offline status was acknowledged (QoS 1) before DISCONNECT
+        poll_until(net, lambda: seen[-1] == ("cbtc/train/A/status", b"offline"), 3.0, "offline on a clean exit")
+        code = ("import os; from cbtc.bus.lean_bus import LeanBus; from cbtc.bus.net_loop import NetLoop; "
+                f"LeanBus('{mosquitto.url}', 'train-B', status_topic='cbtc/train/B/status', net=NetLoop()).start(); "
+                "os._exit(0)")
+        subprocess.run([sys.executable, "-c", code], check=True, timeout=20)
+        poll_until(net, lambda: seen[-1] == ("cbtc/train/B/status", b"offline"), 3.0, "the will of B")
+        assert ("cbtc/train/B/status", b"online") in seen
+        late = LeanBus(mosquitto.url, "late", net=net).start()
+        retained = []
+        late.subscribe("cbtc/train/+/status", lambda t, p: retained.append((t, p)))
+        poll_until(net, lambda: len(retained) == 2, 3.0, "two retained statuses")
+        assert sorted(retained) == [("cbtc/train/A/status", b"offline"), ("cbtc/train/B/status", b"offline")]
+        late.disconnect()
+    finally:
+        watcher.disconnect()
+
+
+@pytest.mark.mosquitto
+def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
+    net = NetLoop()
+    sub = LeanBus(mosquitto.url, "sub", reconnect_max_s=0.5, net=net).start()
+    connects = []
+    sub.on_connect = connects.append
+    got = []
+    sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
+    try:
+        mosquitto.kill()
+        poll_until(net, lambda: not sub.connected, 5.0, "the loss to be noticed")
+        sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
+        assert sub.dropped == 1
+        mosquitto.start()
+        poll_until(net, lambda: sub.connected, 10.0, "reconnect")
+        assert connects == [sub] and sub.losses == 1 and sub.connects == 2
+        pub = LeanBus(mosquitto.url, "pub", net=net).start()
+        deadline = time.monotonic() + 5.0
+        while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
+            pub.publish("cbtc/train/A/cmd", b"after restart")
+            net.poll(0.1)
+        pub.disconnect()
+        assert got and got[0] == b"after restart"
+    finally:
+        sub.disconnect()
+
+
+@pytest.mark.mosquitto
+def test_wrong_credentials_are_refused_with_the_brokers_reason(secured_mosquitto):
+    broker, creds = secured_mosquitto(["A"])
+    user = next(iter(creds))
+    bus = LeanBus(broker.url, "intruder", username=user, password="wrong", net=NetLoop())
+    with pytest.raises(BusError, match="refused the connection .*(bad user name or password|not authorised)"):
+        bus.start(timeout_s=5.0)
+    ok = LeanBus(broker.url, "zc-ok", username=user, password=creds[user], net=NetLoop()).start()
+    assert ok.connected
+    ok.disconnect()
