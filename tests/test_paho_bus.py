@@ -1,4 +1,4 @@
-"""The paho-mqtt bus: URL and QoS rules, the inbox, and against a real Mosquitto: routing, TCP_NODELAY, retained
+"""The paho-mqtt bus: URL and QoS rules, and against a real Mosquitto: routing, TCP_NODELAY, retained
 status and last will, reconnect with resubscribe, refusal; each with paho's own thread and on one NetLoop."""
 
 import socket
@@ -11,15 +11,13 @@ import pytest
 
 from cbtc.bus.client import BusClient
 from cbtc.bus.net_loop import NetLoop
-from cbtc.bus.paho_bus import Inbox, PahoBus, parse_broker_url, topic_qos
+from cbtc.bus.paho_bus import PahoBus, parse_broker_url, topic_qos
 from cbtc.errors import BusError, ConfigError
 
 
-def wait_for(predicate, timeout_s, what, inbox=None, net=None):
+def wait_for(predicate, timeout_s, what, net=None):
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        if inbox is not None:
-            inbox.drain()
         if predicate():
             return
         if net is not None:
@@ -46,19 +44,6 @@ def test_qos_per_topic():
     assert topic_qos("cbtc/train/+/report") == 0
 
 
-def test_inbox_runs_calls_in_order_and_survives_a_failing_one():
-    woken = []
-    inbox = Inbox(notify=lambda: woken.append(1))
-    seen = []
-    inbox.put(seen.append, 1)
-    inbox.put(lambda: 1 / 0)
-    inbox.put(seen.append, 2)
-    assert len(woken) == 3 and len(inbox) == 3
-    assert inbox.drain() == 3
-    assert seen == [1, 2]
-    assert inbox.errors == 1 and "ZeroDivisionError" in inbox.last_error
-
-
 @pytest.mark.parametrize("on_net", [False, True], ids=["paho thread", "net loop"])
 def test_no_broker_is_a_bus_error_naming_the_address(on_net):
     with socket.socket() as sock:
@@ -70,9 +55,8 @@ def test_no_broker_is_a_bus_error_naming_the_address(on_net):
 
 
 @pytest.mark.mosquitto
-def test_publish_subscribe_through_mosquitto_in_the_owner_thread(mosquitto):
-    inbox = Inbox()
-    sub = PahoBus(mosquitto.url, "sub", inbox=inbox).start()
+def test_publish_subscribe_through_mosquitto_on_pahos_thread(mosquitto):
+    sub = PahoBus(mosquitto.url, "sub").start()
     pub = PahoBus(mosquitto.url, "pub").start()
     try:
         assert isinstance(sub, BusClient) and sub.connected
@@ -82,16 +66,15 @@ def test_publish_subscribe_through_mosquitto_in_the_owner_thread(mosquitto):
         pub.publish("cbtc/train/A/report", b"one")
         pub.publish("cbtc/train/B/cmd", b"not for this filter")
         pub.publish("cbtc/train/B/report", b"two")
-        wait_for(lambda: len(got) == 2, 3.0, "two reports", inbox)
+        wait_for(lambda: len(got) == 2, 3.0, "two reports")
         assert [(t, p) for t, p, _ in got] == [("cbtc/train/A/report", b"one"), ("cbtc/train/B/report", b"two")]
-        assert {ident for _, _, ident in got} == {threading.get_ident()}  # run by the drain, not paho's thread
+        assert threading.get_ident() not in {ident for _, _, ident in got}   # called back on paho's thread
         sock = sub._client.socket()
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
         sub.unsubscribe("cbtc/train/+/report")
         time.sleep(0.2)
         pub.publish("cbtc/train/C/report", b"three")
         time.sleep(0.3)
-        inbox.drain()
         assert len(got) == 2
     finally:
         sub.disconnect()

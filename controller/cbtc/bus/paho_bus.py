@@ -12,11 +12,10 @@ anyway). See docs/protocol.md and docs/mqtt.md.
 
 Threads: with a `NetLoop` (`net=`, what `cbtc zone`, `cbtc trains` and the benches use), there is no network thread:
 the loop's thread reads the socket and runs the callbacks, and a command published in answer to a report is written
-as the callback returns (cbtc.bus.net_loop). Without one, paho runs its own thread per connection; with an `Inbox`,
-incoming messages and (re)connect notices are queued there for whoever drains it, else callbacks run on paho's thread.
+as the callback returns (cbtc.bus.net_loop). Without one, paho runs its own thread per connection and the callbacks
+run on it.
 """
 
-import collections
 import logging
 import socket
 import threading
@@ -56,48 +55,14 @@ def parse_broker_url(url: str):
     return parts.hostname, port, user, password
 
 
-class Inbox:
-    """A thread-safe queue of calls: paho's thread `put`s, the owner's thread `drain`s (runs them in order).
-
-    `notify`: called (on the putting thread) after each `put`, e.g. to wake the owner."""
-
-    def __init__(self, notify=None):
-        self._calls = collections.deque()
-        self._notify = notify
-        self.errors = 0
-        self.last_error = ""
-
-    def put(self, fn, *args) -> None:
-        self._calls.append((fn, args))
-        if self._notify is not None:
-            self._notify()
-
-    def __len__(self):
-        return len(self._calls)
-
-    def drain(self, _now_s=None) -> int:
-        """Run every queued call (a failing one is logged and counted, never raised); returns how many ran."""
-        ran = 0
-        while self._calls:
-            fn, args = self._calls.popleft()
-            ran += 1
-            try:
-                fn(*args)
-            except Exception as exc:  # one bad handler must not stop the controller or the trains
-                self.errors += 1
-                self.last_error = f"{getattr(fn, '__qualname__', fn)}: {type(exc).__name__}: {exc}"
-                log.exception("callback failed")
-        return ran
-
-
 class PahoBus(BusClient):
     """One connection to an MQTT broker; implements `cbtc.bus.client.BusClient`.
 
     `status_topic`: the client's retained status topic (`online` on every connect, `offline` as last will and on a
-    clean `disconnect`). `inbox`: where callbacks are queued (None: run on paho's thread)."""
+    clean `disconnect`)."""
 
     def __init__(self, url: str, client_id: str, status_topic: str = None, username: str = None,
-                 password: str = None, inbox: Inbox = None, keepalive_s: int = 5,
+                 password: str = None, keepalive_s: int = 5,
                  reconnect_min_s: float = 0.2, reconnect_max_s: float = 2.0, net=None):
         host, port, url_user, url_password = parse_broker_url(url)
         self.host, self.port = host, port
@@ -108,7 +73,6 @@ class PahoBus(BusClient):
         self.losses = 0
         self.dropped = 0            # publishes while not connected (QoS 0: lost, as on the mock broker)
         self.refusal = ""           # the broker's reason when it refused the last CONNECT
-        self._inbox = inbox
         self._subs = {}             # filter -> callback
         self._lock = threading.Lock()
         self._connected = threading.Event()
@@ -325,9 +289,6 @@ class PahoBus(BusClient):
             self._dispatch(callback, topic, payload)
 
     def _dispatch(self, fn, *args):
-        if self._inbox is not None:
-            self._inbox.put(fn, *args)
-            return
         try:
             fn(*args)
         except Exception as exc:  # a subscriber's bug must not kill the network loop or paho's thread
