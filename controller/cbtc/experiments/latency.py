@@ -17,7 +17,7 @@ seq as `rseq`), and it also answers a report at once by extending the authority 
   event_answer     report of a train published -> the command it triggered for the train behind received
   cycle_compute    one controller cycle (all trains), on_report_compute: handling one report
   reports_dropped  published in the window and never received by the controller; reports_unanswered: never answered
-  controller_cpu_core_share   the controller process's CPU time over the window (its bus and these probes
+  controller_cpu_core_share   the controller process's CPU time over the window (its bus and these probes' time-keeping
                    included) per wall second: 1.0 is a whole core
   reference        the ping-pong's round trip, lost pings and answering CPU; p50/p99_over_reference: ours over it
 
@@ -108,37 +108,50 @@ class TrainProbe:
 
 class ZcProbe:
     """Controller's side: report arrivals, command departures (with the report that triggered an event-driven one),
-    compute times of cycles and of report handling."""
+    compute times of cycles and of report handling. While the controller runs it only keeps times and the raw
+    messages (its CPU time is one of the figures); `decode` reads their keys afterwards."""
 
     def __init__(self):
         self.report_recv = {}    # (train, seq) -> t
         self.cmd_pub = {}        # (train, cmd seq) -> (t, rseq, trigger (train, seq) or None)
         self.cycles = []         # (t, compute s)
         self.on_report = []      # (t, compute s)
-        self._trigger = None
+        self._reports = []       # (t, topic, payload) as received
+        self._commands = []      # (t, payload, index in _reports of the report being handled, or -1)
+        self._trigger = -1
 
     def wrap(self, bus):
         publish, subscribe = bus.publish, bus.subscribe
+        reports, commands, clock = self._reports, self._commands, time.monotonic
 
         def probed_publish(topic, payload, retain=False, qos=0):
             if topic.endswith("/cmd"):
-                train_id, seq, rseq = _command_keys(payload)
-                self.cmd_pub[(train_id, seq)] = (time.monotonic(), rseq, self._trigger)
+                commands.append((clock(), payload, self._trigger))
             publish(topic, payload, retain, qos)
 
         def probed_subscribe(topic_filter, callback):
             def on_message(topic, payload):
-                t0 = time.monotonic()
-                key = (wire.train_id_of(topic), _seq(payload))
-                self.report_recv[key] = t0
-                self._trigger = key
+                t0 = clock()
+                self._trigger = len(reports)
+                reports.append((t0, topic, payload))
                 callback(topic, payload)
-                self._trigger = None
-                self.on_report.append((t0, time.monotonic() - t0))
+                self._trigger = -1
+                self.on_report.append((t0, clock() - t0))
             subscribe(topic_filter, on_message)
 
         bus.publish, bus.subscribe = probed_publish, probed_subscribe
         return bus
+
+    def decode(self):
+        """Fill `report_recv` and `cmd_pub` from the raw messages kept."""
+        keys = []
+        for t, topic, payload in self._reports:
+            key = (wire.train_id_of(topic), _seq(payload))
+            keys.append(key)
+            self.report_recv[key] = t
+        for t, payload, trigger in self._commands:
+            train_id, seq, rseq = _command_keys(payload)
+            self.cmd_pub[(train_id, seq)] = (t, rseq, keys[trigger] if trigger >= 0 else None)
 
     def timed_cycle(self, zc):
         def cycle(now_s):
@@ -281,6 +294,7 @@ def _measure(args, layout, config, url):
             child.join(5.0)
             if child.is_alive():
                 child.kill()
+    probe.decode()
     result = figures(probe, report_pub, cmd_recv, t0, t1)
     result["moving_trains"] = moving
     result["controller_cpu_core_share"] = round((cpu_s[1] - cpu_s[0]) / args.duration, 3) if len(cpu_s) == 2 else None
