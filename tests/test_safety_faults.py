@@ -182,6 +182,22 @@ def test_an_encoder_that_reads_short_still_stops_within_the_authority(square):
     assert sim.recorder.gap_m[1][-1] >= 0.5 * sim.config.params.margin_m
 
 
+@pytest.mark.parametrize("seed", [1, 3])
+def test_a_train_whose_encoder_fails_while_its_ips_is_a_metre_off_is_not_placed_on_the_ips_alone(seed):
+    """T2's IPS reads 0.8 m behind it, then its encoder sticks: located afresh, the fixes alone would put it 0.8 m
+    back and give it (or its follower) authority through the train ahead. The UKF saw its sensors disagree, so the
+    fresh estimate keeps covering where the train was until a balise confirms it: no collision, no authority beyond
+    the train ahead or the track."""
+    sim = _run_faulted(load_layout("lego_oval"), 5, seed, 40.0,
+                       "ips_offset:at_s=15,duration_s=8,offset_m=-0.8,train=T2",
+                       "encoder_stuck:at_s=16,duration_s=1.5,train=T2")
+    summary = sim.recorder.summary()
+    assert summary["encoder_trips"] >= 1, "the encoder fault reached the zone: T2 was located afresh"
+    assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
+    assert summary["granted_beyond_m"] < 0.0
+    assert sim.zc.trains["T2"].estimator.localized and sim.trains[1].travelled_m > 5.0   # and it runs on
+
+
 @pytest.mark.parametrize("scale", [-0.4, float("nan"), 3.0])
 def test_an_encoder_scale_no_wheel_can_have_gives_no_authority_and_the_train_stops(square, scale):
     """The learnt odometer-per-metre mapping flipped sign, turned non-finite or doubled: authorities in odometer units

@@ -425,6 +425,34 @@ def test_an_outlier_as_the_first_fix_does_not_place_the_train(loop):
     assert est.localized and abs(along_error_m(loop, placed.s_m, 1.0)) < 0.05, placed
 
 
+def test_started_afresh_and_placed_by_the_ips_alone_the_estimate_covers_where_the_train_was_until_a_balise(loop):
+    """The zone starts a train's estimator afresh when its encoder fails, telling it where the train was (keep_doubt):
+    fixes that put it 0.8 m back may be the ones that are wrong, so the estimate placed by them reaches forward to
+    the old span; a balise read that agrees with the fixes confirms them and the span goes."""
+    profile = TrainProfile().with_changes(ips_outlier=0.0)
+    x, y = (float(c) for c in loop.xy(1.0))
+    est = UkfEstimator(loop, profile)
+    est.keep_doubt(1.75, 1.85)                     # where the train was: 0.8 m ahead of the fixes
+    standing = _standing_reports(loop, 1.0, [(x + 0.01, y), (x - 0.01, y), (x, y + 0.01)])
+    feed(est, standing)
+    placed = est.estimate(controller_s(standing[-1]["t_ms"]))
+    assert est.localized and abs(along_error_m(loop, placed.s_m, 1.0)) < 0.05
+    assert placed.ahead_m >= 0.8 and placed.behind_m == 0.0
+    est.keep_doubt(0.0, 3.0)                       # once located, a later call changes nothing
+    last = standing[-1]
+    data = balise.image(77, float(loop.wrap(1.0 + profile.rfid_range_m))).hex()
+    feed(est, [dict(last, seq=last["seq"] + 1, t_ms=last["t_ms"] + 125,
+                    tags=[["0a0b0c0d", 0, last["t_ms"] + 100, data]])])
+    confirmed = est.estimate(controller_s(last["t_ms"] + 125))
+    assert confirmed.ahead_m == confirmed.behind_m == 0.0 and abs(along_error_m(loop, confirmed.s_m, 1.0)) < 0.05
+    # placed by a balise, no span is kept: the balise is the arbiter
+    tagged = UkfEstimator(loop, profile)
+    tagged.keep_doubt(1.75, 1.85)
+    feed(tagged, [dict(standing[0], ips=None, tags=[["0a0b0c0d", 0, standing[0]["t_ms"], data]])])
+    first = tagged.estimate(controller_s(standing[0]["t_ms"]))
+    assert tagged.localized and first.ahead_m == first.behind_m == 0.0
+
+
 @pytest.mark.parametrize("head_past_tag_m", [-0.015, 0.0, 0.015])
 def test_a_train_booted_standing_over_a_tag_is_covered_wherever_in_the_field_it_stands(loop, head_past_tag_m):
     """A board that starts with its reader over a tag reads it at once, without driving into the field: its head is

@@ -34,6 +34,8 @@ class OdometryEstimator:
         self.locate_fixes = 3      # IPS fixes that must agree before the IPS alone places the train
         self._fix_anchors = []     # fix position less odometer (m) of the fixes seen while unplaced
         self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout
+        self._doubt_span = None    # (low, high) track positions from before a fresh start (keep_doubt)
+        self._doubt = None         # (behind <= 0, ahead >= 0) of the position it was placed at by the IPS alone
 
     def _s_and_var(self, odo_mm):
         travel_m = (odo_mm - self._odo_ref_mm) / 1000.0
@@ -48,6 +50,18 @@ class OdometryEstimator:
         """A lower bound of odometer metres per true metre: this estimator does not learn the encoder's scale, so it
         takes the drift fraction as the scale's 1-sigma."""
         return 1.0 - k_sigma * self.drift_frac
+
+    def keep_doubt(self, low_s_m: float, high_s_m: float) -> None:
+        """As UkfEstimator.keep_doubt: placed by the IPS alone, the estimate also covers [low_s_m, high_s_m] (where
+        the train was when this estimator was started afresh) until a balise read re-anchors it. The zone hands a
+        span over only from an estimate whose sensors disagreed, which this baseline does not report."""
+        if not self.localized:
+            self._doubt_span = (low_s_m, high_s_m)
+
+    @property
+    def doubt_kept(self) -> bool:
+        """The estimate still covers the span `keep_doubt` gave it (until a balise re-anchors it)."""
+        return self._doubt is not None
 
     def distrust_wheel(self) -> None:
         """Nothing to re-open: this estimator learns no scale and always takes `drift_frac` as its doubt."""
@@ -64,6 +78,7 @@ class OdometryEstimator:
             self._odo_ref_mm = entry[1]
             self._var_ref_m2 = (self.profile.rfid_range_m ** 2) / 3.0
             self.localized = True
+            self._doubt = None
         if report["ips"] is not None:
             self._ips_update(report, clock, odo_mm, v_mps)
         self._last = (t_s, odo_mm, v_mps)
@@ -88,6 +103,10 @@ class OdometryEstimator:
                 self._odo_ref_mm = odo_fix_mm
                 self._var_ref_m2 = 4.0 * r_m2 / found[1]
                 self.localized = True
+                if self._doubt_span is not None:
+                    ring_m, here_m = self.layout.loop_length_m, self.layout.wrap(self._s_ref_m)
+                    low_m, high_m = (circular_offset_m(self.layout.wrap(x), here_m, ring_m) for x in self._doubt_span)
+                    self._doubt = (min(0.0, low_m), max(0.0, high_m))
             return
         s_pred, var = self._s_and_var(odo_fix_mm)
         s_meas = self.layout.project(x_m, y_m, s_hint_m=self.layout.wrap(s_pred))
@@ -113,5 +132,6 @@ class OdometryEstimator:
         sigma_v = 0.02 + 0.05 * abs(v_mps)
         s_now = s_m + v_mps * dt_s
         var_now = var + (sigma_v * dt_s) ** 2
+        behind_m, ahead_m = (0.0, 0.0) if self._doubt is None else (-self._doubt[0], self._doubt[1])
         return Estimate(s_m=self.layout.wrap(s_now), v_mps=v_mps, sigma_s_m=math.sqrt(var_now),
-                        sigma_v_mps=sigma_v, t_s=now_s, data_t_s=t_s)
+                        sigma_v_mps=sigma_v, t_s=now_s, data_t_s=t_s, ahead_m=ahead_m, behind_m=behind_m)

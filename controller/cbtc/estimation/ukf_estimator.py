@@ -129,10 +129,11 @@ class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
-                 "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps")
+                 "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps", "doubt")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
-                 consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0):
+                 consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0,
+                 doubt=None):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -149,11 +150,14 @@ class _State:
         self.tag_offset = tag_offset   # where the newest gated balise read puts the train, less the filter's position
         #                                (m); None while no read disagrees, or once the IPS has shown it wrong
         self.speed_steps = speed_steps  # reported speeds that changed faster than the train can: the wheel slipped
+        self.doubt = doubt             # (low_m, high_m): where the train may be, behind (<= 0) and ahead (>= 0) of the
+        #                                filter's position, from before it was located afresh; None once a balise
+        #                                read has confirmed the position (keep_doubt)
 
     def copy_with(self, snap):
         return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
                       self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
-                      self.tag_offset, self.speed_steps)
+                      self.tag_offset, self.speed_steps, self.doubt)
 
 
 class UkfEstimator:
@@ -173,6 +177,7 @@ class UkfEstimator:
         self._estimate_memo = None   # (state, now_s, clock offset, newest data time, Estimate): asked many times
         self._states = []            # _states[i]: after _events[i]; None while unlocated
         self._base = None            # state before _events[0]
+        self._doubt_span = None      # (low, high) track positions from before a fresh start (keep_doubt)
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
         self._board_odo_m = None     # the newest report's odometer, as the board counts it
@@ -185,6 +190,20 @@ class UkfEstimator:
         self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
         self._envelope = SpeedEnvelope(profile, self.params.motor_tol, self.params.step_window_s)
         self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
+
+    def keep_doubt(self, low_s_m: float, high_s_m: float) -> None:
+        """The train's head was somewhere in [low_s_m, high_s_m] (track positions) when this estimator was started
+        afresh (its encoder failed): located by the IPS alone, the estimate covers that span too (`ahead_m` /
+        `behind_m`) until a balise read confirms the position, since fixes that disagreed with the wheel just before
+        may be the ones that are wrong. Located by a balise, it is not kept. No-op once located."""
+        if not self.localized:
+            self._doubt_span = (low_s_m, high_s_m)
+
+    @property
+    def doubt_kept(self) -> bool:
+        """The estimate still covers the span `keep_doubt` gave it: no balise read has confirmed the position yet."""
+        state = self._newest
+        return state is not None and state.doubt is not None
 
     def distrust_wheel(self) -> None:
         """Locate the train with its encoder scale open (1-sigma `step_scale_sigma`): after the board named an encoder
@@ -429,12 +448,12 @@ class UkfEstimator:
         elif event.kind == "tag":
             if f.update_tag(*event.data):
                 new.tags_used += 1
-                new.tag_offset = None
+                new.tag_offset = new.doubt = None
             elif state.consensus is not None and self._arbitrate(f, state.consensus, *event.data):
                 new.tags_used += 1
                 new.relocations += 1
                 new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
-                new.tag_offset = None
+                new.tag_offset = new.doubt = None
             else:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
@@ -581,7 +600,7 @@ class UkfEstimator:
             if placed is None:
                 return None
             s_m, sigma_s_m = placed[0] + d_m, placed[1]
-            used = _State(None, ips_used=self.params.locate_fixes)
+            used = _State(None, ips_used=self.params.locate_fixes, doubt=self._doubt_offsets(s_m))
         with_scale = self._scale_sigma0 > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
         top_mps = self._top_mps
@@ -594,6 +613,15 @@ class UkfEstimator:
         self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
         used.snap = self._filter.snapshot()
         return used
+
+    def _doubt_offsets(self, s_m):
+        """`keep_doubt`'s span as (behind <= 0, ahead >= 0) offsets from a position `s_m`; None without one."""
+        if self._doubt_span is None:
+            return None
+        ring_m = self.layout.loop_length_m
+        low_m, high_m = (circular_offset_m(self.layout.wrap(x), self.layout.wrap(s_m), ring_m)
+                         for x in self._doubt_span)
+        return min(0.0, low_m), max(0.0, high_m)
 
     def _odometer_at(self, t_s):
         """(odometer m, speed m/s) at board time `t_s`, interpolated between the encoder reports around it; None when
@@ -643,6 +671,8 @@ class UkfEstimator:
             ahead_m, behind_m = max(0.0, state.disagree[1]), max(0.0, -state.disagree[0])
         if state.tag_offset is not None:
             ahead_m, behind_m = max(ahead_m, state.tag_offset), max(behind_m, -state.tag_offset)
+        if state.doubt is not None:
+            ahead_m, behind_m = max(ahead_m, state.doubt[1]), max(behind_m, -state.doubt[0])
         est = Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
                        data_t_s=newest_t_s + offset_s, ahead_m=ahead_m, behind_m=behind_m)

@@ -28,6 +28,7 @@ from cbtc.authority.values import Situation, TrainPicture
 from cbtc.estimation.estimate import BoardClock
 from cbtc.firmware import obu
 from cbtc.protocol import wire
+from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone import plausibility
@@ -99,6 +100,8 @@ class TrainState:
         self.failures = 0            # exceptions in this train's handling: located afresh
         self.failures_said = set()   # the exception types already logged for it
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
+        self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
+        #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
         self._memo_key = None        # (estimator, reports_taken) the values in _memo were made for
         self._memo = {}              # what the zone asks of this train per report: its estimate, picture, scale bounds
 
@@ -288,7 +291,7 @@ class ZoneController:
                 state.encoder_failures += 1
                 self.refusals.note(state.train_id, "encoder failed", f"{', '.join(sorted(faults))}: no authority "
                                    f"until it reports healthy and is located again; every train held", recv_s)
-            state.relocate(self._estimator_factory(self.layout, state.setup.profile))
+            self._relocate_wheel_lost(state)
             state.estimator.distrust_wheel()   # what the wheel read before says nothing of how it reads now
         else:
             state.encoder_failed = False
@@ -297,8 +300,10 @@ class ZoneController:
                 state.odometer_jumps += 1
                 self.refusals.note(state.train_id, "odometer jump", f"{jump_mm} mm further than the train can travel: "
                                    f"locating it afresh", recv_s)
-                state.relocate(self._estimator_factory(self.layout, state.setup.profile))
+                self._relocate_wheel_lost(state)
             state.estimator.on_report(report, state.clock)
+            if state.estimator.localized and not state.estimator.doubt_kept:
+                state.doubt_span = None   # a balise has confirmed where it is
             if not self._filter_healthy(state):
                 self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
                                    "updating its filter", payload, recv_s)
@@ -318,6 +323,29 @@ class ZoneController:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
             self._answer(state, recv_s)
+
+    def _relocate_wheel_lost(self, state):
+        """Start the train's estimator afresh (its odometer is lost). When its sensors disagreed just before (an IPS
+        off by a metre, or the wheel), either may be the one that is wrong: the fresh estimator is handed where the
+        estimate covered the train (UkfEstimator.keep_doubt), so fixes alone do not place it, nor its follower's
+        authority, outside that; the span is kept, not widened again, over further restarts until a balise confirms
+        the position."""
+        if state.report is not None and state.estimator.localized:
+            est = state.newest_estimate()
+            if est is not None:
+                widen_m = self.params.k_sigma * est.sigma_s_m
+                if state.doubt_span is None:
+                    if est.ahead_m or est.behind_m:   # its sensors disagreed: either may be the one that is wrong
+                        state.doubt_span = (est.s_m - est.behind_m - widen_m, est.s_m + est.ahead_m + widen_m)
+                else:   # still unconfirmed: the span kept, and where it was placed since (not widened again)
+                    low_m, high_m = state.doubt_span
+                    ring_m = self.layout.loop_length_m
+                    low_m = est.s_m + min(circular_offset_m(low_m, est.s_m, ring_m), -est.behind_m, -widen_m)
+                    high_m = est.s_m + max(circular_offset_m(high_m, est.s_m, ring_m), est.ahead_m, widen_m)
+                    state.doubt_span = (low_m, high_m)
+        state.relocate(self._estimator_factory(self.layout, state.setup.profile))
+        if state.doubt_span is not None:
+            state.estimator.keep_doubt(*state.doubt_span)
 
     def _record(self, state, report, recv_s):
         """Hand an accepted report to `report_sink` (a recording); a sink that fails is dropped, the zone goes on."""
