@@ -1,7 +1,8 @@
-"""The bus interface the controller and the trains talk to, and MQTT topic rules shared by its implementations.
+"""The bus interface the controller and the trains talk to, and the MQTT rules shared by its implementations: topics
+and filters, the QoS of each topic, the retained status words, the broker URL.
 
-Two implementations: `cbtc.bus.mock_broker` (in-process, virtual clock, fault injection) and `cbtc.bus.paho_bus` (a real
-broker through paho-mqtt). A client object has:
+Implementations: `cbtc.bus.mock_broker` (in-process, virtual clock, fault injection), and on a real broker
+`cbtc.bus.lean_bus` (this project's MQTT client) and `cbtc.bus.paho_bus` (paho-mqtt). A client object has:
 
     client_id: str
     connected: bool
@@ -14,9 +15,44 @@ broker through paho-mqtt). A client object has:
 `BusClient` states this as a Protocol, so `isinstance(client, BusClient)` checks an implementation.
 """
 
+import urllib.parse
 from typing import Callable, Optional, Protocol, runtime_checkable
 
+from cbtc.errors import ConfigError
+
 MAX_TOPIC_BYTES = 65535
+ONLINE = b"online"
+OFFLINE = b"offline"
+DEFAULT_PORT = 1883
+
+
+def topic_qos(topic: str) -> int:
+    """The QoS a topic is published and subscribed with: 1 for `.../status`, 0 for reports and commands."""
+    return 1 if topic.endswith("/status") else 0
+
+
+def parse_broker_url(url: str):
+    """`mqtt://[user:password@]host[:port]` -> (host, port, username or None, password or None)."""
+    parts = urllib.parse.urlsplit(url if "://" in url else "mqtt://" + url)
+    if parts.scheme != "mqtt":
+        raise ConfigError(f"broker URL {url!r}: scheme {parts.scheme!r} is not supported; use mqtt://HOST:PORT")
+    try:
+        port = parts.port or DEFAULT_PORT
+    except ValueError:
+        raise ConfigError(f"broker URL {url!r}: the port must be a number in 1-65535") from None
+    if not parts.hostname:
+        raise ConfigError(f"broker URL {url!r} names no host; use mqtt://HOST:PORT, e.g. mqtt://127.0.0.1:1883")
+    user = urllib.parse.unquote(parts.username) if parts.username else None
+    password = urllib.parse.unquote(parts.password) if parts.password else None
+    return parts.hostname, port, user, password
+
+
+def checked_payload(topic: str, payload) -> bytes:
+    """`payload` as bytes to publish on `topic` (checked: no wildcards, bytes); ValueError or TypeError naming it."""
+    validate_topic(topic)
+    if not isinstance(payload, (bytes, bytearray)):
+        raise TypeError(f"payload on {topic} must be bytes, got {type(payload).__name__}")
+    return bytes(payload)
 
 
 @runtime_checkable

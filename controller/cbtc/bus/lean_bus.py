@@ -12,8 +12,17 @@ import socket
 import time
 
 from cbtc.bus import mqtt_packets as mp
-from cbtc.bus.client import BusClient, topic_matches, validate_filter, validate_topic
-from cbtc.bus.paho_bus import OFFLINE, ONLINE, parse_broker_url, topic_qos
+from cbtc.bus.client import (
+    OFFLINE,
+    ONLINE,
+    BusClient,
+    checked_payload,
+    parse_broker_url,
+    topic_matches,
+    topic_qos,
+    validate_filter,
+    validate_topic,
+)
 from cbtc.errors import BusError
 
 log = logging.getLogger("cbtc.mqtt")
@@ -108,13 +117,11 @@ class LeanBus(BusClient):
 
     def publish(self, topic, payload, retain=False, qos=0):
         """Send `payload`; QoS is the higher of `qos` and `topic_qos(topic)`. Dropped (counted) while disconnected."""
-        validate_topic(topic)
-        if not isinstance(payload, (bytes, bytearray)):
-            raise TypeError(f"payload on {topic} must be bytes, got {type(payload).__name__}")
+        payload = checked_payload(topic, payload)
         if not self._connected:
             self.dropped += 1
             return
-        self._publish(topic, bytes(payload), max(qos, topic_qos(topic)), retain)
+        self._publish(topic, payload, max(qos, topic_qos(topic)), retain)
 
     def _publish(self, topic, payload, qos, retain):
         pid = 0

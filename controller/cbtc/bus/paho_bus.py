@@ -20,40 +20,24 @@ import logging
 import socket
 import threading
 import time
-import urllib.parse
 
 import paho.mqtt.client as mqtt
 
-from cbtc.bus.client import BusClient, topic_matches, validate_filter, validate_topic
-from cbtc.errors import BusError, ConfigError
+from cbtc.bus.client import (  # noqa: F401  (the connection policy, also read from here)
+    DEFAULT_PORT,
+    OFFLINE,
+    ONLINE,
+    BusClient,
+    checked_payload,
+    parse_broker_url,
+    topic_matches,
+    topic_qos,
+    validate_filter,
+    validate_topic,
+)
+from cbtc.errors import BusError
 
 log = logging.getLogger("cbtc.paho")
-
-ONLINE = b"online"
-OFFLINE = b"offline"
-DEFAULT_PORT = 1883
-
-
-def topic_qos(topic: str) -> int:
-    """The QoS a topic is published and subscribed with: 1 for `.../status`, 0 for reports and commands."""
-    return 1 if topic.endswith("/status") else 0
-
-
-def parse_broker_url(url: str):
-    """`mqtt://[user:password@]host[:port]` -> (host, port, username or None, password or None)."""
-    parts = urllib.parse.urlsplit(url if "://" in url else "mqtt://" + url)
-    if parts.scheme != "mqtt":
-        raise ConfigError(f"broker URL {url!r}: scheme {parts.scheme!r} is not supported; use mqtt://HOST:PORT")
-    try:
-        port = parts.port or DEFAULT_PORT
-    except ValueError:
-        raise ConfigError(f"broker URL {url!r}: the port must be a number in 1-65535") from None
-    if not parts.hostname:
-        raise ConfigError(f"broker URL {url!r} names no host; use mqtt://HOST:PORT, e.g. mqtt://127.0.0.1:1883")
-    user = urllib.parse.unquote(parts.username) if parts.username else None
-    password = urllib.parse.unquote(parts.password) if parts.password else None
-    return parts.hostname, port, user, password
-
 
 class PahoBus(BusClient):
     """One connection to an MQTT broker; implements `cbtc.bus.client.BusClient`.
@@ -210,13 +194,11 @@ class PahoBus(BusClient):
 
     def publish(self, topic, payload, retain=False, qos=0):
         """Send `payload`; QoS is the higher of `qos` and `topic_qos(topic)`. Dropped (counted) while disconnected."""
-        validate_topic(topic)
-        if not isinstance(payload, (bytes, bytearray)):
-            raise TypeError(f"payload on {topic} must be bytes, got {type(payload).__name__}")
+        payload = checked_payload(topic, payload)
         if not self.connected:
             self.dropped += 1
             return
-        info = self._client.publish(topic, bytes(payload), qos=max(qos, topic_qos(topic)), retain=retain)
+        info = self._client.publish(topic, payload, qos=max(qos, topic_qos(topic)), retain=retain)
         if info.rc != mqtt.MQTT_ERR_SUCCESS:
             self.dropped += 1
         if self._net is not None and self._client.want_write():

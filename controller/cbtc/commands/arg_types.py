@@ -159,7 +159,7 @@ def layout(text):
 
 def broker_url(text):
     """mqtt://HOST:PORT (user and password may be in it)."""
-    from cbtc.bus.paho_bus import parse_broker_url
+    from cbtc.bus.client import parse_broker_url
     _checked(parse_broker_url, text)
     return text
 

@@ -16,7 +16,7 @@ import time
 
 import paho.mqtt.client as mqtt
 
-from cbtc.bus.paho_bus import parse_broker_url
+from cbtc.bus.client import parse_broker_url
 from cbtc.errors import BusError
 
 PING_FILTER = "bench/ping/+"
