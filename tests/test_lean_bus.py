@@ -1,10 +1,9 @@
 """The lean MQTT client: its packets against the 3.1.1 layout, the parser fed in any chunks, and against a real
-Mosquitto, beside paho: routing both ways, retained status and last will, reconnect with resubscribe, refusal,
-QoS 1 acknowledged, and a handler's answer written in the poll that read the message."""
+Mosquitto, beside paho: routing both ways, a handler's answer written in the poll that read the message, refusal
+of wrong credentials. Refusal with no broker, retained status and last will (QoS 1 acknowledged), and reconnect run
+for it and for paho in test_mqtt_clients.py."""
 
 import socket
-import subprocess
-import sys
 import threading
 import time
 
@@ -62,15 +61,6 @@ def test_the_parser_gives_back_every_packet_whatever_chunks_the_bytes_come_in(me
     assert got == [(t, p, q) for t, p, q in messages] and not buffer
 
 
-def test_no_broker_is_a_bus_error_naming_the_address():
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]   # bound, not listening: connections are refused
-        bus = LeanBus(f"mqtt://127.0.0.1:{port}", "lonely", net=NetLoop())
-        with pytest.raises(BusError, match=f"127.0.0.1:{port}"):
-            bus.start(timeout_s=0.5)
-
-
 @pytest.mark.mosquitto
 def test_lean_and_paho_clients_talk_both_ways_and_the_answer_leaves_in_the_poll_that_read_the_message(mosquitto):
     threads_before = threading.active_count()
@@ -113,61 +103,6 @@ def test_lean_and_paho_clients_talk_both_ways_and_the_answer_leaves_in_the_poll_
         train.disconnect()
         zc.disconnect()
     assert threading.active_count() == threads_before
-
-
-@pytest.mark.mosquitto
-def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto):
-    net = NetLoop()
-    watcher = LeanBus(mosquitto.url, "watcher", net=net).start()
-    seen = []
-    watcher.subscribe("cbtc/train/+/status", lambda t, p: seen.append((t, p)))
-    try:
-        bus = LeanBus(mosquitto.url, "train-A", status_topic="cbtc/train/A/status", net=net).start()
-        poll_until(net, lambda: ("cbtc/train/A/status", b"online") in seen, 3.0, "online")
-        bus.disconnect()
-        assert not bus._unacked   # the offline status was acknowledged (QoS 1) before DISCONNECT
-        poll_until(net, lambda: seen[-1] == ("cbtc/train/A/status", b"offline"), 3.0, "offline on a clean exit")
-        code = ("import os; from cbtc.bus.lean_bus import LeanBus; from cbtc.bus.net_loop import NetLoop; "
-                f"LeanBus('{mosquitto.url}', 'train-B', status_topic='cbtc/train/B/status', net=NetLoop()).start(); "
-                "os._exit(0)")
-        subprocess.run([sys.executable, "-c", code], check=True, timeout=20)
-        poll_until(net, lambda: seen[-1] == ("cbtc/train/B/status", b"offline"), 3.0, "the will of B")
-        assert ("cbtc/train/B/status", b"online") in seen
-        late = LeanBus(mosquitto.url, "late", net=net).start()
-        retained = []
-        late.subscribe("cbtc/train/+/status", lambda t, p: retained.append((t, p)))
-        poll_until(net, lambda: len(retained) == 2, 3.0, "two retained statuses")
-        assert sorted(retained) == [("cbtc/train/A/status", b"offline"), ("cbtc/train/B/status", b"offline")]
-        late.disconnect()
-    finally:
-        watcher.disconnect()
-
-
-@pytest.mark.mosquitto
-def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto):
-    net = NetLoop()
-    sub = LeanBus(mosquitto.url, "sub", reconnect_max_s=0.5, net=net).start()
-    connects = []
-    sub.on_connect = connects.append
-    got = []
-    sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
-    try:
-        mosquitto.kill()
-        poll_until(net, lambda: not sub.connected, 5.0, "the loss to be noticed")
-        sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
-        assert sub.dropped == 1
-        mosquitto.start()
-        poll_until(net, lambda: sub.connected, 10.0, "reconnect")
-        assert connects == [sub] and sub.losses == 1 and sub.connects == 2
-        pub = LeanBus(mosquitto.url, "pub", net=net).start()
-        deadline = time.monotonic() + 5.0
-        while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
-            pub.publish("cbtc/train/A/cmd", b"after restart")
-            net.poll(0.1)
-        pub.disconnect()
-        assert got and got[0] == b"after restart"
-    finally:
-        sub.disconnect()
 
 
 @pytest.mark.mosquitto

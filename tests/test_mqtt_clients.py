@@ -1,5 +1,7 @@
-"""The paho-mqtt bus: URL and QoS rules, and against a real Mosquitto: routing, TCP_NODELAY, retained
-status and last will, reconnect with resubscribe, refusal; each with paho's own thread and on one NetLoop."""
+"""The real-broker clients: URL and QoS rules, and against a real Mosquitto, for each way of connecting (paho on its
+own thread, paho on a NetLoop, the lean client on a NetLoop): refusal with no broker, retained status and last will,
+reconnect with resubscribe; routing and TCP_NODELAY on paho's thread, and paho on one NetLoop. The lean client's
+own tests are in test_lean_bus.py."""
 
 import socket
 import subprocess
@@ -10,6 +12,7 @@ import time
 import pytest
 
 from cbtc.bus.client import BusClient
+from cbtc.bus.lean_bus import LeanBus
 from cbtc.bus.net_loop import NetLoop
 from cbtc.bus.paho_bus import PahoBus, parse_broker_url, topic_qos
 from cbtc.errors import BusError, ConfigError
@@ -25,6 +28,45 @@ def wait_for(predicate, timeout_s, what, net=None):
         else:
             time.sleep(0.01)
     raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+
+
+class Clients:
+    """Buses of one kind: "paho thread", "paho net loop" or "lean"; the net-loop kinds share one NetLoop."""
+
+    KINDS = ("paho thread", "paho net loop", "lean")
+
+    def __init__(self, kind):
+        self.kind = kind
+        self.net = None if kind == "paho thread" else NetLoop()
+
+    def bus(self, url, client_id, **options):
+        """A bus not yet started."""
+        kind = LeanBus if self.kind == "lean" else PahoBus
+        return kind(url, client_id, net=self.net, **options)
+
+    def start(self, url, client_id, **options):
+        return self.bus(url, client_id, **options).start()
+
+    def wait_for(self, predicate, timeout_s, what):
+        wait_for(predicate, timeout_s, what, net=self.net)
+
+    def pause(self, seconds):
+        """Let `seconds` pass, the loop (if any) handling traffic meanwhile."""
+        if self.net is None:
+            time.sleep(seconds)
+            return
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.net.poll(0.01)
+
+    def start_and_die_code(self, url, client_id, status_topic):
+        """Python that starts a bus of this kind in a new process and ends it abruptly (no DISCONNECT)."""
+        kind = "LeanBus" if self.kind == "lean" else "PahoBus"
+        net = "" if self.net is None else ", net=NetLoop()"
+        return (f"import os, time; from cbtc.bus.lean_bus import LeanBus; from cbtc.bus.paho_bus import PahoBus; "
+                f"from cbtc.bus.net_loop import NetLoop; "
+                f"{kind}('{url}', '{client_id}', status_topic='{status_topic}'{net}).start(); "
+                "time.sleep(0.3); os._exit(0)")
 
 
 def test_parse_broker_url():
@@ -44,12 +86,12 @@ def test_qos_per_topic():
     assert topic_qos("cbtc/train/+/report") == 0
 
 
-@pytest.mark.parametrize("on_net", [False, True], ids=["paho thread", "net loop"])
-def test_no_broker_is_a_bus_error_naming_the_address(on_net):
+@pytest.mark.parametrize("kind", Clients.KINDS)
+def test_no_broker_is_a_bus_error_naming_the_address(kind):
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]   # bound, not listening: connections are refused
-        bus = PahoBus(f"mqtt://127.0.0.1:{port}", "lonely", net=NetLoop() if on_net else None)
+        bus = Clients(kind).bus(f"mqtt://127.0.0.1:{port}", "lonely")
         with pytest.raises(BusError, match=f"127.0.0.1:{port}"):
             bus.start(timeout_s=0.5)
 
@@ -82,27 +124,29 @@ def test_publish_subscribe_through_mosquitto_on_pahos_thread(mosquitto):
 
 
 @pytest.mark.mosquitto
-def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto):
-    watcher = PahoBus(mosquitto.url, "watcher").start()
+@pytest.mark.parametrize("kind", Clients.KINDS)
+def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto, kind):
+    clients = Clients(kind)
+    watcher = clients.start(mosquitto.url, "watcher")
     seen = []
     watcher.subscribe("cbtc/train/+/status", lambda t, p: seen.append((t, p)))
     try:
-        bus = PahoBus(mosquitto.url, "train-A", status_topic="cbtc/train/A/status").start()
-        wait_for(lambda: ("cbtc/train/A/status", b"online") in seen, 3.0, "online")
+        bus = clients.start(mosquitto.url, "train-A", status_topic="cbtc/train/A/status")
+        clients.wait_for(lambda: ("cbtc/train/A/status", b"online") in seen, 3.0, "online")
         bus.disconnect()
-        wait_for(lambda: seen[-1] == ("cbtc/train/A/status", b"offline"), 3.0, "offline on a clean exit")
+        if isinstance(bus, LeanBus):
+            assert not bus._unacked   # the offline status was acknowledged (QoS 1) before DISCONNECT
+        clients.wait_for(lambda: seen[-1] == ("cbtc/train/A/status", b"offline"), 3.0, "offline on a clean exit")
         # an abrupt end (the process dies, no DISCONNECT): the broker publishes the last will
-        code = ("import os, sys, time; from cbtc.bus.paho_bus import PahoBus; "
-                f"PahoBus('{mosquitto.url}', 'train-B', status_topic='cbtc/train/B/status').start(); "
-                "time.sleep(0.3); os._exit(0)")
+        code = clients.start_and_die_code(mosquitto.url, "train-B", "cbtc/train/B/status")
         subprocess.run([sys.executable, "-c", code], check=True, timeout=20)
-        wait_for(lambda: seen[-1] == ("cbtc/train/B/status", b"offline"), 3.0, "the will of B")
+        clients.wait_for(lambda: seen[-1] == ("cbtc/train/B/status", b"offline"), 3.0, "the will of B")
         assert ("cbtc/train/B/status", b"online") in seen
         # retained: a late subscriber learns both at once
-        late = PahoBus(mosquitto.url, "late").start()
+        late = clients.start(mosquitto.url, "late")
         retained = []
         late.subscribe("cbtc/train/+/status", lambda t, p: retained.append((t, p)))
-        wait_for(lambda: len(retained) == 2, 3.0, "two retained statuses")
+        clients.wait_for(lambda: len(retained) == 2, 3.0, "two retained statuses")
         assert sorted(retained) == [("cbtc/train/A/status", b"offline"), ("cbtc/train/B/status", b"offline")]
         late.disconnect()
     finally:
@@ -110,30 +154,27 @@ def test_status_online_retained_offline_on_clean_exit_and_as_last_will(mosquitto
 
 
 @pytest.mark.mosquitto
-@pytest.mark.parametrize("on_net", [False, True], ids=["paho thread", "net loop"])
-def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto, on_net):
-    net = NetLoop() if on_net else None
-    sub = PahoBus(mosquitto.url, "sub", reconnect_max_s=0.5, net=net).start()
+@pytest.mark.parametrize("kind", Clients.KINDS)
+def test_reconnects_and_resubscribes_after_a_broker_restart(mosquitto, kind):
+    clients = Clients(kind)
+    sub = clients.start(mosquitto.url, "sub", reconnect_max_s=0.5)
     connects = []
     sub.on_connect = connects.append
     got = []
     sub.subscribe("cbtc/train/A/cmd", lambda t, p: got.append(p))
     try:
         mosquitto.kill()
-        wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed", net=net)
+        clients.wait_for(lambda: not sub.connected, 5.0, "the loss to be noticed")
         sub.publish("cbtc/train/A/cmd", b"into the void")   # dropped, counted, no exception
         assert sub.dropped == 1
         mosquitto.start()
-        wait_for(lambda: sub.connected, 10.0, "reconnect", net=net)
+        clients.wait_for(lambda: sub.connected, 10.0, "reconnect")
         assert connects == [sub] and sub.losses == 1 and sub.connects == 2
-        pub = PahoBus(mosquitto.url, "pub", net=net).start()
+        pub = clients.start(mosquitto.url, "pub")
         deadline = time.monotonic() + 5.0
         while not got and time.monotonic() < deadline:   # until the resubscription has reached the broker
             pub.publish("cbtc/train/A/cmd", b"after restart")
-            if net is not None:
-                net.poll(0.1)
-            else:
-                time.sleep(0.1)
+            clients.pause(0.1)
         pub.disconnect()
         assert got and got[0] == b"after restart"
     finally:
