@@ -3,6 +3,14 @@
 from dataclasses import dataclass
 
 from cbtc.protocol import wire
+from cbtc.railway.geometry import circular_offset_m
+
+
+def span_offsets_m(layout, span, s_m: float):
+    """A span of track positions (low, high) as (behind <= 0, ahead >= 0) offsets from position `s_m` on `layout`,
+    the short way round on a loop: how far behind and ahead of `s_m` it reaches (0 where it does not)."""
+    low_m, high_m = (circular_offset_m(layout.wrap(x), layout.wrap(s_m), layout.loop_length_m) for x in span)
+    return min(0.0, low_m), max(0.0, high_m)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ drift).
 
 import math
 
-from cbtc.estimation.estimate import Estimate
+from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.protocol import wire
 from cbtc.railway.balise import BaliseReader
@@ -104,9 +104,7 @@ class OdometryEstimator:
                 self._var_ref_m2 = 4.0 * r_m2 / found[1]
                 self.localized = True
                 if self._doubt_span is not None:
-                    ring_m, here_m = self.layout.loop_length_m, self.layout.wrap(self._s_ref_m)
-                    low_m, high_m = (circular_offset_m(self.layout.wrap(x), here_m, ring_m) for x in self._doubt_span)
-                    self._doubt = (min(0.0, low_m), max(0.0, high_m))
+                    self._doubt = span_offsets_m(self.layout, self._doubt_span, self._s_ref_m)
             return
         s_pred, var = self._s_and_var(odo_fix_mm)
         s_meas = self.layout.project(x_m, y_m, s_hint_m=self.layout.wrap(s_pred))

@@ -26,7 +26,7 @@ from dataclasses import dataclass, fields
 from numpy.linalg import LinAlgError
 
 from cbtc.errors import ConfigError
-from cbtc.estimation.estimate import Estimate
+from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.estimation.speed_envelope import SpeedEnvelope
 from cbtc.estimation.track_ukf import (
@@ -600,7 +600,8 @@ class UkfEstimator:
             if placed is None:
                 return None
             s_m, sigma_s_m = placed[0] + d_m, placed[1]
-            used = _State(None, ips_used=self.params.locate_fixes, doubt=self._doubt_offsets(s_m))
+            doubt = None if self._doubt_span is None else span_offsets_m(self.layout, self._doubt_span, s_m)
+            used = _State(None, ips_used=self.params.locate_fixes, doubt=doubt)
         with_scale = self._scale_sigma0 > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
         top_mps = self._top_mps
@@ -613,15 +614,6 @@ class UkfEstimator:
         self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
         used.snap = self._filter.snapshot()
         return used
-
-    def _doubt_offsets(self, s_m):
-        """`keep_doubt`'s span as (behind <= 0, ahead >= 0) offsets from a position `s_m`; None without one."""
-        if self._doubt_span is None:
-            return None
-        ring_m = self.layout.loop_length_m
-        low_m, high_m = (circular_offset_m(self.layout.wrap(x), self.layout.wrap(s_m), ring_m)
-                         for x in self._doubt_span)
-        return min(0.0, low_m), max(0.0, high_m)
 
     def _odometer_at(self, t_s):
         """(odometer m, speed m/s) at board time `t_s`, interpolated between the encoder reports around it; None when

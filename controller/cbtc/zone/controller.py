@@ -25,10 +25,9 @@ from dataclasses import dataclass, field, replace
 
 from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m, scale_trusted, within_horizon
 from cbtc.authority.values import Situation, TrainPicture
-from cbtc.estimation.estimate import BoardClock
+from cbtc.estimation.estimate import BoardClock, span_offsets_m
 from cbtc.firmware import obu
 from cbtc.protocol import wire
-from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone import plausibility
@@ -338,11 +337,9 @@ class ZoneController:
                     if est.ahead_m or est.behind_m:   # its sensors disagreed: either may be the one that is wrong
                         state.doubt_span = (est.s_m - est.behind_m - widen_m, est.s_m + est.ahead_m + widen_m)
                 else:   # still unconfirmed: the span kept, and where it was placed since (not widened again)
-                    low_m, high_m = state.doubt_span
-                    ring_m = self.layout.loop_length_m
-                    low_m = est.s_m + min(circular_offset_m(low_m, est.s_m, ring_m), -est.behind_m, -widen_m)
-                    high_m = est.s_m + max(circular_offset_m(high_m, est.s_m, ring_m), est.ahead_m, widen_m)
-                    state.doubt_span = (low_m, high_m)
+                    behind_m, ahead_m = span_offsets_m(self.layout, state.doubt_span, est.s_m)
+                    state.doubt_span = (est.s_m + min(behind_m, -est.behind_m, -widen_m),
+                                        est.s_m + max(ahead_m, est.ahead_m, widen_m))
         state.relocate(self._estimator_factory(self.layout, state.setup.profile))
         if state.doubt_span is not None:
             state.estimator.keep_doubt(*state.doubt_span)
