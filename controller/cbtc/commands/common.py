@@ -6,6 +6,7 @@ import os
 import sys
 from dataclasses import replace
 
+from cbtc.bus.clients import MQTT_CLIENTS
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
 from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, train_keys
@@ -111,7 +112,7 @@ def add_connection_args(p, broker_default=None) -> None:
 
 def add_mqtt_client_arg(p) -> None:
     """--mqtt-client: the lean client (default) or paho, the reference (cbtc.bus.clients)."""
-    p.add_argument("--mqtt-client", choices=("lean", "paho"), default="lean",
+    p.add_argument("--mqtt-client", choices=MQTT_CLIENTS, default=MQTT_CLIENTS[0],
                    help="MQTT client: lean (default; a fraction of paho's work per message) or paho (the reference)")
 
 
