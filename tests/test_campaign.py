@@ -109,35 +109,6 @@ def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, caps
     assert on_dask["by_fault"] == first["by_fault"] and on_dask["violations"] == first["violations"]
 
 
-def test_a_terminal_sees_a_progress_bar_with_the_time_left_and_json_sees_none(tmp_path):
-    import pty
-    import select
-
-    argv = [sys.executable, "-m", "cbtc.cli", "campaign", "--runs", "3", "--duration", "5", "--trains", "2",
-            "--layouts", "itb_square", "--workers", "1", "--results", str(tmp_path / "r.jsonl")]
-    master, slave = pty.openpty()
-    env = dict(os.environ, COLUMNS="100", TERM="xterm")
-    proc = subprocess.Popen(argv, stdin=slave, stdout=slave, stderr=slave, env=env)
-    os.close(slave)
-    seen = b""
-    while True:
-        ready, _, _ = select.select([master], [], [], 60)
-        try:
-            chunk = os.read(master, 4096) if ready else b""
-        except OSError:                                  # the terminal closed with the process
-            chunk = b""
-        if not chunk:
-            break
-        seen += chunk
-    os.close(master)
-    assert proc.wait(timeout=30) in (0, 1)
-    text = seen.decode(errors="replace")
-    assert "campaign" in text and "/3" in text and ("-:--:--" in text or "0:00:0" in text), text[-2000:]
-    quiet = subprocess.run(argv[:-2] + ["--results", str(tmp_path / "q.jsonl"), "--json", "--runs", "1"],
-                           capture_output=True, text=True, timeout=60)
-    assert "━" not in quiet.stderr and json.loads(quiet.stdout)["runs"] == 1
-
-
 def test_a_campaign_over_a_scenario_file_draws_faults_for_its_trains_and_reproduces_each_run(tmp_path, capsys):
     results = str(tmp_path / "r.jsonl")
     argv = ["campaign", "--scenario", "lego_oval_mixed", "--runs", "3", "--duration", "8", "--results", results,

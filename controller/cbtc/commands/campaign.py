@@ -14,6 +14,7 @@ import time
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import SCENARIO_HELP, format_table, print_json
+from cbtc.commands.progress_bar import bar, shown
 from cbtc.errors import ConfigError
 from cbtc.experiments import campaign
 
@@ -140,21 +141,15 @@ def run(args):
         print(f"campaign: {len(specs)} runs of {args.duration:g} s ({reused} already in {args.results}), "
               f"{len(todo)} to make on {where}", flush=True)
     started = time.perf_counter()
-    show = not args.json and sys.stderr.isatty() and todo
     try:
-        if show:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+        with bar("campaign", len(todo), shown(args) and bool(todo)) as update:
+            made = [0]
 
-            with Progress(TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TextColumn("runs"),
-                          TimeRemainingColumn(), transient=True) as bar:
-                task = bar.add_task("campaign", total=len(todo))
-
-                def done(record):
-                    results.add(record)
-                    bar.advance(task)
-                _make(todo, args, done, run_dask, run_local)
-        else:
-            _make(todo, args, results.add, run_dask, run_local)
+            def done(record):
+                results.add(record)
+                made[0] += 1
+                update(made[0], f"{made[0]}/{len(todo)} runs")
+            _make(todo, args, done, run_dask, run_local)
     except KeyboardInterrupt:
         made = sum(1 for spec in todo if spec.command() in results.records)
         print(f"campaign: stopped; {made} of {len(todo)} runs made are kept in {args.results}: run the same command "

@@ -47,6 +47,7 @@ def run_scenario_and_report(config, title, args) -> int:
     (a collision, an authority overrun, an authority reaching beyond the train ahead)."""
     import time
 
+    from cbtc.commands.progress_bar import shown, simulation_bar
     from cbtc.sim.recorder import violations
     from cbtc.sim.simulation import Simulation
 
@@ -56,7 +57,8 @@ def run_scenario_and_report(config, title, args) -> int:
     if recording is not None:
         sim.record_reports(recording)
     try:
-        recorder = sim.run()
+        with simulation_bar("sim", 1, shown(args)):
+            recorder = sim.run()
     finally:
         if recording is not None:
             recording.close()

@@ -5,6 +5,7 @@ from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_paper_or_scenario_args, format_table, print_json, with_scenario
+from cbtc.commands.progress_bar import shown, simulation_bar
 from cbtc.errors import ConfigError
 from cbtc.zone.config import paper_scenario
 
@@ -104,16 +105,20 @@ def run(args):
         layout, args.seed = base.layout, base.seed
         title = f"scenario {base.name}: {len(base.trains)} trains on {layout.name}, seed {base.seed}"
     check_block_counts(layout, counts, base=base)
-    systems, recorders = run_systems(base, code_ber=args.code_ber)
+    with_alone = layout.closed and layout.stations   # the first train alone: its lap against the minimum
+    runs = 2 + bool(with_alone) + 1 + len(report_periods) + len(speeds) + len(counts)
+    with simulation_bar("compare", runs, shown(args)):
+        systems, recorders = run_systems(base, code_ber=args.code_ber)
+        alone = None
+        if with_alone:
+            low_s, high_s = base.trains[0].dwell_s or base.dwell_s
+            alone = lone_lap(layout, base.trains[0].profile, dwell_s=low_s if low_s == high_s else 2.0,
+                             seed=args.seed)
+        following = steady_following(layout, seed=args.seed)
+        by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in report_periods]
+        by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
+        sweep = block_sweep(layout, counts, base=base) if counts else []
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
-    alone = None
-    if layout.closed and layout.stations:   # the first train alone: its lap against the minimum for its profile
-        low_s, high_s = base.trains[0].dwell_s or base.dwell_s
-        alone = lone_lap(layout, base.trains[0].profile, dwell_s=low_s if low_s == high_s else 2.0, seed=args.seed)
-    following = steady_following(layout, seed=args.seed)
-    by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in report_periods]
-    by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
-    sweep = block_sweep(layout, counts, base=base) if counts else []
     result = {"layout": layout.name, "seed": args.seed, "scenario": base.name, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
               "following_by_speed": by_speed,

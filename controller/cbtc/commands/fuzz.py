@@ -7,10 +7,10 @@ every train afterwards and no payload got through; 1 otherwise.
 
 import argparse
 import logging
-import sys
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_mqtt_client_arg, module_doc, print_json
+from cbtc.commands.progress_bar import bar, shown
 
 MAX_PAYLOADS = 1_000_000
 
@@ -34,18 +34,11 @@ def run(args):
     logging.getLogger("cbtc.zone").setLevel(logging.ERROR)
     from cbtc.experiments import fuzz
 
-    show = not args.json and sys.stderr.isatty()
-    if show:
-        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-        with Progress(TextColumn("fuzz"), BarColumn(), TextColumn("{task.fields[sent]} payloads sent"),
-                      TimeRemainingColumn(), transient=True) as bar:
-            task = bar.add_task("fuzz", total=None, sent=0)
-            result = fuzz.run_fuzz(args.payloads, args.seed, args.broker,
-                                   lambda done_s, total_s, sent: bar.update(task, completed=done_s, total=total_s,
-                                                                            sent=sent), client=args.mqtt_client)
-    else:
-        result = fuzz.run_fuzz(args.payloads, args.seed, args.broker, client=args.mqtt_client)
+    with bar("fuzz", 1.0, shown(args)) as update:
+        result = fuzz.run_fuzz(args.payloads, args.seed, args.broker,
+                               lambda done_s, total_s, sent: update(done_s / total_s if total_s else 1.0,
+                                                                    f"{sent} payloads sent"),
+                               client=args.mqtt_client)
     if args.json:
         print_json(result)
     else:

@@ -2,6 +2,7 @@
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
+from cbtc.commands.progress_bar import shown, simulation_bar
 
 EXAMPLES = (
     "cbtc guard --seeds 0-1 --duration 20",
@@ -26,7 +27,8 @@ def register(sub):
 def run(args):
     from cbtc.experiments.guard import ENCODER_FAULT, IPS_OFFSET_M, guard_comparison
 
-    result = guard_comparison(args.seeds, args.layout, args.duration)
+    with simulation_bar("guard", 2 * len(args.seeds), shown(args)):   # each seed: guard off, then on
+        result = guard_comparison(args.seeds, args.layout, args.duration)
     off_runs = sum(1 for case in result["off"] if case["collisions"] > 0)
     on_total = sum(case["collisions"] for case in result["on"])
     if args.json:

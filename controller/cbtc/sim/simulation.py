@@ -11,7 +11,7 @@ from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
 from cbtc.protocol import wire
 from cbtc.scheduler import VirtualScheduler
-from cbtc.sim import faults
+from cbtc.sim import faults, progress
 from cbtc.sim.recorder import Recorder
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import ScenarioConfig, train_key
@@ -120,9 +120,11 @@ class Simulation:
         config = self.config
         step_s = 1.0
         t_s = 0.0
+        progress.report(self, 0.0, config.duration_s)
         while t_s < config.duration_s:
             t_s = min(config.duration_s, t_s + step_s)
             self.scheduler.run_until(t_s)
+            progress.report(self, t_s, config.duration_s)
             if config.laps is not None and all(self.recorder.laps(i) >= config.laps for i in range(len(self.trains))):
                 break
         return self.recorder

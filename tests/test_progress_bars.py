@@ -1,0 +1,73 @@
+"""Long commands show a progress bar with the time left on a terminal (a pseudo-terminal here), and none under
+`--json` or when stdout is not a terminal."""
+
+import os
+import re
+import select
+import subprocess
+import sys
+import time
+
+import pytest
+
+from mosquitto_fixture import requires_mosquitto
+
+BAR = re.compile(r"━+.*ETA (\d+:\d\d:\d\d)")   # rich's bar, then the time left once it can be estimated
+
+
+def on_terminal(argv, stop_at=None, timeout_s=120.0):
+    """What `cbtc argv` draws on a pseudo-terminal 100 columns wide, its escape sequences removed; when `stop_at`
+    (a regex) is seen the command is stopped there."""
+    import pty
+
+    master, slave = pty.openpty()
+    env = dict(os.environ, COLUMNS="100", TERM="xterm")
+    proc = subprocess.Popen([sys.executable, "-m", "cbtc.cli", *argv], stdin=slave, stdout=slave, stderr=slave,
+                            env=env)
+    os.close(slave)
+    seen, deadline = "", time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 1.0)
+            if not ready:
+                if proc.poll() is not None:
+                    break
+                continue
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:   # the terminal closed with the process
+                break
+            if not chunk:
+                break
+            seen += re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", chunk.decode(errors="replace"))
+            if stop_at is not None and re.search(stop_at, seen):
+                break
+    finally:
+        proc.kill()
+        proc.wait(timeout=30)
+        os.close(master)
+    return seen
+
+
+CASES = {
+    "sim": ["sim", "--trains", "2", "--duration", "40"],
+    "compare": ["compare", "--laps", "1", "--report-ms", "", "--follow-mps", "", "--blocks", ""],
+    "campaign": ["campaign", "--runs", "2", "--duration", "5", "--trains", "2", "--layouts", "itb_square",
+                 "--workers", "1", "--fresh"],
+    "fuzz": ["fuzz", "--payloads", "200"],
+}
+
+
+@pytest.mark.parametrize("name", ["sim", "compare", "campaign", pytest.param("fuzz", marks=requires_mosquitto)])
+def test_a_terminal_sees_a_bar_with_the_time_left_and_json_sees_none(name, tmp_path):
+    argv = CASES[name] + (["--results", str(tmp_path / "r.jsonl")] if name == "campaign" else [])
+    drawn = on_terminal(argv, stop_at=BAR.pattern)
+    assert BAR.search(drawn) and name in drawn, drawn[-2000:]
+    quiet = on_terminal(argv + ["--json"], stop_at=r"━", timeout_s=8.0 if name == "fuzz" else 120.0)
+    assert "━" not in quiet and "ETA" not in quiet, quiet[-2000:]
+
+
+def test_no_bar_when_stdout_is_not_a_terminal():
+    out = subprocess.run([sys.executable, "-m", "cbtc.cli", *CASES["sim"]], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0 and "━" not in out.stdout + out.stderr and "ETA" not in out.stderr
