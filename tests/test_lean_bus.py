@@ -115,3 +115,19 @@ def test_wrong_credentials_are_refused_with_the_brokers_reason(secured_mosquitto
     ok = LeanBus(broker.url, "zc-ok", username=user, password=creds[user], net=NetLoop()).start()
     assert ok.connected
     ok.disconnect()
+
+
+@pytest.mark.mosquitto
+def test_a_client_that_only_publishes_pings_the_broker_and_stays_connected(mosquitto):
+    """A board whose commands never come (a wrong key) still publishes every 50 ms: it hears nothing from the broker
+    unless it asks, so it pings when nothing was read for the keepalive period rather than call the broker lost."""
+    net = NetLoop()
+    train = LeanBus(mosquitto.url, "train-A", net=net, keepalive_s=1).start()
+    try:
+        deadline = time.monotonic() + 3.5
+        while time.monotonic() < deadline:
+            train.publish("cbtc/train/A/report", b"r")
+            net.poll(0.05)
+        assert train.connected and train.losses == 0
+    finally:
+        train.disconnect()

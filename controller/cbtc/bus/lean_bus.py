@@ -68,6 +68,7 @@ class LeanBus(BusClient):
         self._unacked = set()       # packet ids of QoS 1 publishes not yet acknowledged
         self._next_id = 0
         self._last_in_s = self._last_out_s = 0.0
+        self._ping_s = 0.0              # when the newest PINGREQ went out
 
     # --- lifecycle ---------------------------------------------------------------------------------------------
 
@@ -200,11 +201,14 @@ class LeanBus(BusClient):
             self._net.wants_write(self)
 
     def net_misc(self, now_s: float) -> None:
-        """Keepalive (a PINGREQ when nothing was written for the keepalive period, a loss when nothing was read for
-        one and a half); a lost connection opened again when its backoff delay is over."""
+        """Keepalive as paho keeps it: a PINGREQ when nothing was written, or nothing read, for the keepalive period
+        (a client that only publishes hears nothing else from the broker); a loss when nothing was read for one and
+        a half. A lost connection is opened again when its backoff delay is over."""
         if self._sock is not None:
-            if self._connected and now_s - self._last_out_s >= self._keepalive_s:
+            quiet_s = now_s - max(self._last_in_s, self._ping_s)
+            if self._connected and (now_s - self._last_out_s >= self._keepalive_s or quiet_s >= self._keepalive_s):
                 self._out += mp.pingreq()
+                self._ping_s = now_s
                 self._net.wants_write(self)
             if now_s - self._last_in_s >= 1.5 * self._keepalive_s:
                 self._lost("no answer from the broker within 1.5 keepalive periods")
