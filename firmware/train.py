@@ -31,7 +31,7 @@ def run(config, now, unit, link, maint, watchdog=None):
     or with the motor braked when the FLASH button (`maint` reads 0) is held in the boot window (maintenance: the REPL
     stays). heap_peak: the most heap in use at the end of a pass, its garbage not yet collected (an upper bound of the
     live heap during a pass); heap_live: the most heap in use after a pass's garbage is collected."""
-    peak = live = errors = next_stats_ms = 0
+    peak = live = errors = next_stats_ms = refused_said = 0
     grace_over = False
     last_ms = now()
     while True:
@@ -81,6 +81,10 @@ def run(config, now, unit, link, maint, watchdog=None):
                                                          "up" if link.connected else "down", link.losses, unit.mode,
                                                          errors, unit.sensor_errors, link.oversized, link.retained,
                                                          link.failed))
+            if unit.rejected != refused_said:   # refused commands: a count and the newest reason, once a period
+                print("refused: %d commands since the last stats; the newest: %s"
+                      % (unit.rejected - refused_said, unit.last_reject))
+                refused_said = unit.rejected
         if config["run_ms"] and now_ms >= config["run_ms"]:
             return peak, live
         gc.collect()

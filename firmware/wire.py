@@ -58,6 +58,10 @@ class WireError(ValueError):
         self.reason = reason
 
 
+class AuthError(WireError):
+    """A message whose seal does not match: sealed with another key (the board's and the zone's differ), or altered."""
+
+
 def topic_report(train_id):
     return "cbtc/train/%s/report" % train_id
 
@@ -190,7 +194,7 @@ def decode_sealed(key, topic, payload, kind, specs):
             for i in range(cut, len(sealed)):
                 diff |= sealed[i] ^ payload[i]
     if diff:
-        raise WireError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
+        raise AuthError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     try:
         msg = json.loads(body)
     except ValueError:

@@ -190,6 +190,9 @@ def test_board_boots_reports_obeys_brakes_and_survives_a_lost_broker(mpy_tree, t
             time.sleep(0.1)
         running = zc.wait(lambda r: r["mode"] == "run" and r["duty"] > 0, 1, "run with duty")
         assert running["cseq"] >= 1
+        # a command sealed with another key: refused, and said on the console with the stats, once
+        zc.client.publish("cbtc/train/%s/cmd" % TRAIN, wire.encode_command(
+            b"wrong key 16 byt", TRAIN, running["boot"], zc.cmd_seq + 1, 7, running["seq"], 400, 10000, 800, 600, 800))
 
         # silence: the command expires and the train brakes to a stop
         stopped = zc.wait(lambda r: r["mode"] == "stop" and r["duty"] == 0, 3, "stop after expiry")
@@ -222,6 +225,8 @@ def test_board_boots_reports_obeys_brakes_and_survives_a_lost_broker(mpy_tree, t
     assert any(s[4] == "down" and s[6] == "stop" for s in stats), "the board braked while the broker was gone"
     assert int(stats[-1][5]) >= 1                      # the loss was counted, the loop went on
     assert all(s[7] == "0" for s in stats), "no exception reached the loop"
+    refused = re.findall(r"refused: (\d+) commands since the last stats; the newest: (.*)", out)
+    assert refused and refused[0][1].startswith("payload on cbtc/train/A/cmd fails authentication"), out
     live = max(int(s[2]) for s in stats)
     print("firmware on the 64-bit unix port: peak live heap %d bytes (heap %s)" % (live, BOOT_HEAP))
     assert 0 < live < BOOT_HEAP_BYTES
@@ -337,6 +342,7 @@ class Unit:
     motor = Motor()
     mode = "idle"
     sensor_errors = 0
+    rejected = 0
     link_ok = True
     steps = 0
     def step(self, now_ms):

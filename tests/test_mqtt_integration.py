@@ -207,10 +207,10 @@ def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
     finally:
         attacker.disconnect()
     assert summary["unknown_reports"] >= 1 and summary["invalid_reports"] >= 1
-    assert summary["trains"]["A"]["last_reject"].endswith("fails authentication (wrong key, or altered in transit)")
+    assert summary["trains"]["A"]["last_reject"] == "its reports fail authentication"
     with open(os.path.join(fleet.folder, "zone.err")) as fh:
         log = fh.read()
-    assert "train 'Z' is not in this zone" in log and "train A: invalid report" in log
+    assert "train 'Z' is not in this zone" in log and "train A: wrong key" in log
 
 
 def test_broker_killed_trains_stop_within_authority_then_resume(fleet):
@@ -365,3 +365,27 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
     with open(tmp_path / "run.jsonl") as fh:   # every accepted report, as cbtc calibrate reads them
         recorded = [json.loads(line) for line in fh]
     assert {r["id"] for r in recorded} == {"P1", "F1"} and all("odo_mm" in r for r in recorded)
+
+
+def test_a_key_mismatch_is_said_once_per_train_per_10_s_with_the_key_file_and_the_fix(mosquitto, tmp_path):
+    """The zone holds keys from a file, the boards derive theirs from --sim-seed: every report fails
+    authentication. Over 12 s the zone says so at most twice per train (t = 0 and 10 s), naming the keys file and
+    the fix; the boards, which get no command, say that at most once per 10 s, naming where their keys come from."""
+    keys = str(tmp_path / "keys.json")
+    assert subprocess.run(cbtc("keys", "new", "--train-ids", "A,B", "--out", keys), capture_output=True).returncode == 0
+    zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--layout", LAYOUT, "--train-ids", "A,B",
+                                 "--keys", keys, "--duration", "13", "--quiet"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    trains = subprocess.Popen(cbtc("trains", "--broker", mosquitto.url, "--layout", LAYOUT, "--trains", "2",
+                                   "--sim-seed", "0", "--duration", "12.5", "--quiet"),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    zone_err = zone.communicate(timeout=40)[1]
+    trains_err = trains.communicate(timeout=40)[1]
+    for train in ("A", "B"):
+        said = [line for line in zone_err.splitlines() if f"train {train}: wrong key" in line]
+        assert 1 <= len(said) <= 2, zone_err
+        assert all(f"keys file {keys}" in line and "cbtc flash --keys FILE" in line and len(line) - len(keys) < 250
+                   for line in said), (keys, said)
+        silent = [line for line in trains_err.splitlines() if f"train {train}: no command taken" in line]
+        assert len(silent) <= 2 and all("--sim-seed 0" in line for line in silent), trains_err
+    assert len(zone_err.splitlines()) <= 6, zone_err

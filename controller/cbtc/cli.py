@@ -63,7 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    logging.basicConfig(level=logging.WARNING, format="%(name)s: %(levelname)s: %(message)s")
+    # each line timed (wall clock, ms): a log read after a run tells what happened when
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s.%(msecs)03d %(name)s: %(levelname)s: %(message)s",
+                        datefmt="%H:%M:%S")
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

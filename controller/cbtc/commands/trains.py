@@ -37,6 +37,7 @@ def run(args):
 
     from cbtc.bus.broker_config import train_user
     from cbtc.bus.clients import start_bus
+    from cbtc.live.board_notes import BoardNotes
     from cbtc.live.loop import LiveLoop
     from cbtc.protocol import wire
     from cbtc.sim.truth import TruthMonitor
@@ -61,7 +62,9 @@ def run(args):
             train.client.disconnect()
         raise
     monitor = TruthMonitor(layout, trains)
+    notes = BoardNotes(trains, f"keys file {args.keys}" if args.keys else f"--sim-seed {args.sim_seed}")
     start_s = loop.now_s()
+    loop.scheduler.call_every(1.0, notes.check, start_s=start_s + 1.0)
     for index, train in enumerate(trains):
         loop.scheduler.call_every(config.loop_s, train.tick, start_s=start_s + 0.001 * (index + 1))
     loop.scheduler.call_every(config.loop_s, monitor.sample, start_s=start_s + 0.0105)

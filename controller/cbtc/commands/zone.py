@@ -71,6 +71,8 @@ def run(args):
                     status_topic=wire.topic_zone_status(args.zone_id), username=username, password=password)
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
+    zc.key_source = f"keys file {args.keys}" if args.keys else \
+        f"--sim-seed {args.sim_seed} (the keys cbtc trains derives from that seed)"
     recording = None
     if args.record:
         recording = zc.report_sink = ReportRecording(args.record)

@@ -203,6 +203,7 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.refusals = RefusalLog(log)
+        self.key_source = "its keys"   # where the zone's keys come from, named when a board's differ (a file)
         self.cycles = 0
         self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.ranging.transponder.RangingSensor.sigma_m)
         self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
@@ -244,14 +245,20 @@ class ZoneController:
         except Exception as exc:   # one train's bad data never stops the zone
             self._train_failed(state, exc, "handling a report", payload, recv_s)
 
-    def _refuse(self, state, klass, reason, recv_s):
+    def _refuse(self, state, klass, reason, recv_s, advice=""):
         state.reports_rejected += 1
         state.last_reject = short(reason)
-        self.refusals.note(state.train_id, klass, reason, recv_s)
+        self.refusals.note(state.train_id, klass, reason, recv_s, advice)
 
     def _take_report(self, state, payload, recv_s):
         try:
             report = wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
+        except wire.AuthError:
+            self.invalid_reports += 1
+            self._refuse(state, "wrong key", "its reports fail authentication", recv_s,
+                         advice=f"the zone's key is from {self.key_source}: flash the board with it (cbtc flash "
+                                f"--keys FILE) or give the zone the board's")
+            return
         except wire.WireError as exc:
             self.invalid_reports += 1
             self._refuse(state, "invalid report", exc.reason, recv_s)
