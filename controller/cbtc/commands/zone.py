@@ -1,12 +1,13 @@
 """`cbtc zone`: the zone controller on a real MQTT broker, on the wall clock.
 
 It subscribes to every configured train's reports, runs its 10 Hz cycle and publishes sealed commands; it prints a
-status line per second. Ctrl-C stops it cleanly: every train is first commanded to stop (speed 0, authority at its
-braking distance), then, half a second later, the controller publishes its retained `offline` status and leaves.
+status table per second (a row per train, at most 100 columns, a legend first). Ctrl-C stops it cleanly: every train
+is first commanded to stop (speed 0, authority at its braking distance), then, half a second later, the controller
+publishes its retained `offline` status and leaves.
 """
 
 import secrets
-import sys
+import textwrap
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import (
@@ -83,6 +84,8 @@ def run(args):
     ids = [spec.train_id for spec in config.trains]
     print(f"zone {args.zone_id}: {len(ids)} trains {ids} on {layout.name}, broker "
           f"{bus.host}:{bus.port}, session {zc.session_id}", flush=True)
+    if not args.quiet:
+        print(textwrap.fill(STATUS_LEGEND, 100), flush=True)
     loop.install_signal_handlers()
     loop.run(args.duration)
     # shutdown: no more cycles or event-driven answers that could extend an authority, then stop every train
@@ -102,7 +105,7 @@ def run(args):
 
 
 def _status(zc, bus, loop, args, now_s):
-    """Every status period: the status line, and the status and summary files (a kill loses at most one period)."""
+    """Every status period: the status table, and the status and summary files (a kill loses at most one period)."""
     snapshot = zc.snapshot(now_s)
     if args.status_json:
         write_json(args.status_json, {"zone_id": args.zone_id, "session_id": zc.session_id, "t_s": round(now_s, 3),
@@ -113,25 +116,43 @@ def _status(zc, bus, loop, args, now_s):
         _print_status(snapshot, bus, now_s)
 
 
-def _print_status(snapshot, bus, now_s):
-    parts = []
+STATUS_LEGEND = ("status, a row per train: s = head position along the track (m), v = speed (m/s), limit = end of "
+                 "authority on the track (m), data = age of its newest report (s; STALE: older than the zone "
+                 "accepts, figures as last heard), mode = the board's, next = next stop, authority = what limits "
+                 "it (held: why it has none), notes = the board's faults and the zone's doubts")
+STATUS_COLUMNS = (("train", 6, "<"), ("s m", 6, ">"), ("v m/s", 6, ">"), ("limit m", 7, ">"), ("data s", 9, ">"),
+                  ("mode", 5, "<"), ("next", 6, "<"), ("authority", 30, "<"), ("notes", 17, "<"))   # 100 columns
+
+
+def status_table(snapshot, broker_up, now_s):
+    """The zone's status as lines of at most 100 characters: a heading, then a row per train (STATUS_LEGEND)."""
+    lines = [f"t={now_s:.1f} s, broker {'up' if broker_up else 'DOWN'}",
+             " ".join(_cell(name, width, align) for name, width, align in STATUS_COLUMNS).rstrip()]
     for train_id, row in snapshot.items():
-        if row["stale"]:   # not heard from within the timeout: where it last was, not where it might be now
-            parts.append(f"{train_id} STALE {row['data_age_s']:.1f}s at s={fmt(row['s_m'])} "
-                         f"lim={fmt(row['limit_s_m'])}")
-            continue
-        faults = ",".join(row["faults"]) or "-"
-        spread = ""
+        age = row["data_age_s"]
+        data = "-" if age is None else (f"{age:.1f} STALE" if row["stale"] else f"{age:.2f}")
+        notes = list(row["faults"])
         if row["ahead_m"] or row["behind_m"]:   # its sensors disagree: the authority covers both stories
-            spread = f" sensors disagree (-{row['behind_m']:.2f}/+{row['ahead_m']:.2f} m, {row['gated_fixes']} gated)"
+            notes.append(f"doubt-{row['behind_m']:.2f}+{row['ahead_m']:.2f}")
         if row["speed_steps"]:   # the wheel's scale was re-opened: it slipped or spun
-            spread += f" wheel slipped x{row['speed_steps']}"
-        parts.append(f"{train_id} s={fmt(row['s_m'])}{spread} v={fmt(row['v_mps'])} lim={fmt(row['limit_s_m'])} "
-                     f"[{row['limited_by'] or '-'}] "
-                     f"{row['mode'] or 'silent'} next={row['next_stop'] or '-'} flt={faults}")
-    link = "up" if bus.connected else "DOWN"
-    print(f"t={now_s:6.1f}s broker {link} | " + " | ".join(parts), flush=True)
-    sys.stdout.flush()
+            notes.append(f"slip x{row['speed_steps']}")
+        v_mps = row["v_mps"]
+        if v_mps is not None and abs(v_mps) < 0.005:
+            v_mps = 0.0   # standing: not "-0.00"
+        cells = (train_id, fmt(row["s_m"]), fmt(v_mps), fmt(row["limit_s_m"]), data,
+                 row["mode"] or "-", row["next_stop"] or "-", row["limited_by"] or "-", ",".join(notes) or "-")
+        lines.append(" ".join(_cell(str(value), width, align)
+                              for value, (_name, width, align) in zip(cells, STATUS_COLUMNS)).rstrip())
+    return lines
+
+
+def _cell(text, width, align):
+    text = text if len(text) <= width else text[:width - 1] + "~"
+    return text.ljust(width) if align == "<" else text.rjust(width)
+
+
+def _print_status(snapshot, bus, now_s):
+    print("\n".join(status_table(snapshot, bus.connected, now_s)), flush=True)
 
 
 def _summary(zc, bus, loop, snapshot=None):

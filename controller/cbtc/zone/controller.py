@@ -74,6 +74,7 @@ class TrainState:
         self.dwells = 0
         self.limit_s = None          # current authority limit along the track (m), for supervision
         self.safe_m = None           # distance the safety limit allowed at the last command (m)
+        self.limited_by = None       # what limited its last command: the authority's reason, or why it is held
         self.eoa_mm = None
         self.cmd_seq = 0
         self.cmd_fields = None       # what the newest command sent says (wire.encode_command's fields but seq)
@@ -471,12 +472,25 @@ class ZoneController:
                 leader.fast_until_s = now_s + self.params.fast_hold_s
                 self._fast_wanting[leader.train_id] = leader
                 leader.fast_need_m = safe_m
+            state.limited_by = auth.reason
         else:
             safe_m = None
             v_cap_mps = 0.0
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
+            state.limited_by = self._hold_reason()
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
+
+    def _hold_reason(self):
+        """Why every train is held (no authority): the first train not located, or not answering this zone."""
+        for st in self.trains.values():
+            if st.report is None:
+                return f"held: {st.train_id} not heard"
+            if not st.estimator.localized:
+                return f"held: {st.train_id} not located"
+        if self._unanswered:
+            return f"held: {min(self._unanswered, key=lambda st: st.rank).train_id} not answering"
+        return "held"
 
     def _situation(self, state, leader, now_s):
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
@@ -618,6 +632,7 @@ class ZoneController:
                                    f"[{_SCALE_LOW}, {_SCALE_HIGH}]: no authority until it is learnt again", now_s)
             safe_m, stop_m, v_cap_mps, dec_mps2 = None, None, 0.0, state.setup.profile.beta_s_mps2
             scale_low = _SCALE_LOW
+            state.limited_by = "held: encoder scale unknown"
         state.safe_m = safe_m
         if safe_m is None:
             # no picture of every train: stop now at service rate; the authority never extends. Its end is the
@@ -636,6 +651,8 @@ class ZoneController:
             reach_m = min(safe_m * scale_low, (1.0 - self.params.slide_share) * (safe_m + self.params.margin_m))
             eoa_mm = report["odo_mm"] + int(reach_m * 1000.0)
         if state.eoa_mm is not None and (safe_m is None or self._leader_stale(state, now_s)):
+            if safe_m is not None and eoa_mm > state.eoa_mm:
+                state.limited_by = "not extended: stale data"
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
         # a stop target is service, not safety: the best estimate of the scale, and never beyond the end of authority
@@ -739,7 +756,7 @@ class ZoneController:
                 "sigma_s_m": None if est is None else round(est.sigma_s_m, 4),
                 "limit_s_m": None if st.limit_s is None else round(st.limit_s, 4),
                 "leader_data_age_s": None if st.leader_data_t_s is None else round(now_s - st.leader_data_t_s, 3),
-                "limited_by": None if st.authority is None else st.authority.reason,
+                "limited_by": st.limited_by,
                 "mode": None if st.report is None else st.report["mode"],
                 "faults": [] if st.report is None else list(st.report["flt"]),
                 "next_stop": st.next_stop or None,

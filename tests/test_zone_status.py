@@ -1,0 +1,24 @@
+"""`cbtc zone`'s status: a table of at most 100 columns however many trains, each train's authority and what
+limits it (or why it is held), stale data marked stale, and a legend."""
+
+from cbtc.commands.zone import STATUS_LEGEND, status_table
+from cbtc.sim.runs import sim_config
+from cbtc.sim.simulation import Simulation
+
+
+def test_twelve_trains_fit_100_columns_with_their_authority_and_a_stale_one_marked():
+    sim = Simulation(sim_config("lego_long_oval", 12, seed=3, duration_s=30.0))
+    sim.scheduler.run_until(0.5)
+    held = status_table(sim.zc.snapshot(0.5), True, 0.5)   # while a train is not located yet: every train held
+    sim.scheduler.run_until(12.0)
+    sim.trains[5].frozen = True          # a dead board: its reports stop
+    sim.scheduler.run_until(14.0)
+    lines = status_table(sim.zc.snapshot(14.0), True, 14.0)
+    assert len(lines) == 2 + 12 and all(len(line) <= 100 for line in lines + held), "\n".join(lines)
+    rows = {line.split()[0]: line for line in lines[2:]}
+    dead = sim.trains[5].train_id
+    assert "STALE" in rows[dead] and all("STALE" not in row for t, row in rows.items() if t != dead)
+    assert any("'s tail" in row for row in rows.values())              # what limits a follower
+    assert any("held: T3 not located" in row for row in held[2:]), "\n".join(held)
+    for word in ("s = head position", "limit = end of authority", "STALE", "authority = what limits"):
+        assert word in STATUS_LEGEND
