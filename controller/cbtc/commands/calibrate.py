@@ -8,6 +8,7 @@ import json
 
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
+from cbtc.railway.train_profile import TrainProfile
 
 
 def register(subparsers):
@@ -35,6 +36,16 @@ def register(subparsers):
                       help="track position of the head at the first report (m)")
     tags.add_argument("--loop-m", type=arg_types.number(above=0.0, example="6.8"), default=None,
                       help="loop length (m) for a closed layout")
+    tags.add_argument("--distance-m", type=arg_types.number(above=0.0, example="3.2"), default=None,
+                      help="distance the train really travelled from the first report to the last (m): the "
+                           "odometer's scale is taken from it, as `cbtc calibrate encoder` takes it (default: the "
+                           "odometer reads true)")
+    tags.add_argument("--rfid-range-m", type=arg_types.number(minimum=0.0, example="0.015"),
+                      default=TrainProfile.rfid_range_m,
+                      help=f"how far ahead of the head the reader reads a tag (m; default "
+                           f"{TrainProfile.rfid_range_m}, the MFRC522 with a LEGO tag)")
+    tags.add_argument("--poll-ms", type=arg_types.number(minimum=0.0, example="20"), default=20.0,
+                      help="the board's loop period, once per which it polls the reader (ms; default 20)")
     tags.add_argument("--train", default=None, metavar="ID", help="the train whose reports to use (a recording of "
                                                                   "several trains needs it)")
     tags.set_defaults(func=_tags)
@@ -88,11 +99,7 @@ def _encoder(args):
     from cbtc.board.calibration import counts_per_m
 
     reports = _reports(args.reports, args.train)
-    travelled_m = (reports[-1]["odo_mm"] - reports[0]["odo_mm"]) / 1000.0
-    if len(reports) < 2 or travelled_m < MIN_RUN_M:
-        raise ConfigError(f"{args.reports}: {len(reports)} reports with {travelled_m:.3f} m of odometer between the "
-                          f"first and the last; record a run of at least {MIN_RUN_M} m (a few metres is best), from "
-                          f"standing to standing, and measure how far the train really went")
+    travelled_m = _travelled_m(args, reports)
     counts = travelled_m * args.counts_per_m
     value = counts_per_m([counts], [args.distance_m])
     # the board counts whole counts per metre (its odometer stays an integer): the nearest is within 0.05 % of a
@@ -126,7 +133,26 @@ def _ips(args):
 def _tags(args):
     from cbtc.board.calibration import survey_tags, tags_yaml
 
-    survey = survey_tags(_reports(args.reports, args.train), args.start_s_m, loop_m=args.loop_m)
+    reports = _reports(args.reports, args.train)
+    odo_per_m = 1.0
+    if args.distance_m is not None:
+        odo_per_m = _travelled_m(args, reports) / args.distance_m
+    survey = survey_tags(reports, args.start_s_m, loop_m=args.loop_m, odo_per_m=odo_per_m,
+                         read_ahead_m=args.rfid_range_m, poll_s=args.poll_ms / 1000.0)
+    if not survey:
+        raise ConfigError(f"{args.reports}: no tag was read in {len(reports)} reports; record a run that passes "
+                          f"over the tags (is the reader wired? `rfid_absent` in the reports' faults says not)")
+    print(f"# {len(survey)} tags from {len(reports)} reports, the odometer read {odo_per_m:.4f} m per m")
     print("tags:")
     print(tags_yaml(survey), end="")
     return 0
+
+
+def _travelled_m(args, reports):
+    """Odometer metres between the first report and the last; a run too short to calibrate from is refused."""
+    travelled_m = (reports[-1]["odo_mm"] - reports[0]["odo_mm"]) / 1000.0
+    if len(reports) < 2 or travelled_m < MIN_RUN_M:
+        raise ConfigError(f"{args.reports}: {len(reports)} reports with {travelled_m:.3f} m of odometer between the "
+                          f"first and the last; record a run of at least {MIN_RUN_M} m (a few metres is best), from "
+                          f"standing to standing, and measure how far the train really went")
+    return travelled_m
