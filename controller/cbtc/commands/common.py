@@ -66,7 +66,7 @@ def run_scenario_and_report(config, title, args) -> int:
     summary = recorder.summary()
     if args.plot:
         from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
-        distance_time_png([recorder], [title], args.plot)
+        distance_time_png([recorder], args.plot)
     if args.json:
         print_json(summary)
     else:

@@ -125,8 +125,8 @@ def run(args):
               "block_sweep": sweep, "reference": base.reference, "alone": alone}
     if args.plot:
         from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
-        distance_time_png([recorders["fixed_block"], recorders["moving_block"]],
-                          ["fixed block (baseline)", "moving block + Takagi control"], args.plot,
+        distance_time_png([recorders["fixed_block"], recorders["moving_block"]], args.plot,
+                          ["fixed block (baseline)", "moving block + Takagi control"],
                           paper_note="paper: gap 1.89 m -> 0.91 m (-52 %), lap 15.72 s -> 6.84 s (-56 %)"
                           if base.name in (None, "paper_itb") else None)
     if args.json:
