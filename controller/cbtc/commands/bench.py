@@ -3,9 +3,11 @@ broker and the controller's compute time (experiments/latency.py says what each 
 the filter's update time, memory growth and start-up, each beside its reference (experiments/speed.py)."""
 
 import argparse
+import sys
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_mqtt_client_arg, format_table, module_doc, print_json
+from cbtc.commands.progress_bar import shown, steps
 from cbtc.errors import ConfigError
 
 EXAMPLES = (
@@ -97,6 +99,10 @@ def _speed_parser(bench_sub, name, help_text):
 
 def run_latency(args):
     from cbtc.experiments import latency
+    if shown(args):   # no bar: its drawing would take the very CPU and time this measures
+        seconds = 2 * (args.warmup + args.duration)
+        print(f"bench latency: about {seconds:.0f} s with start-up ({args.warmup:g} s warm-up and {args.duration:g} s "
+              f"measured, for the zone and then the ping-pong reference)", file=sys.stderr, flush=True)
     result = latency.run_latency(args)
     if args.json:
         print_json(result)
@@ -125,7 +131,11 @@ def run_sim(args):
     if (args.layout is None) != (args.trains is None):
         raise ConfigError("bench sim: give --layout and --trains together, or neither (the three standard cases)")
     cases = speed.SIM_CASES if args.layout is None else ((args.layout, args.trains),)
-    rows = [speed.sim_speed(layout, n, args.duration, args.seed) for layout, n in cases]
+    rows = []
+    with steps("bench sim", [f"{n} trains on {layout}" for layout, n in cases], shown(args)) as step:
+        for layout, n in cases:
+            step(f"{n} trains on {layout}")
+            rows.append(speed.sim_speed(layout, n, args.duration, args.seed))
     return _emit(args, "sim", rows, _print_sim)
 
 
@@ -155,7 +165,12 @@ def _print_fusion(row):
 
 def run_controller(args):
     from cbtc.experiments import speed
-    rows = [speed.controller_speed(n, args.duration, args.seed) for n in ((args.trains,) if args.trains else (11, 50))]
+    counts = (args.trains,) if args.trains else (11, 50)
+    rows = []
+    with steps("bench controller", [f"{n} trains" for n in counts], shown(args)) as step:
+        for n in counts:
+            step(f"{n} trains")
+            rows.append(speed.controller_speed(n, args.duration, args.seed))
     return _emit(args, "controller", rows, _print_controller)
 
 
@@ -183,12 +198,22 @@ def _print_memory(row):
 def run_all(args):
     """Every figure the simulation-speed work is judged by, measured one after the other in one process's run."""
     from cbtc.experiments import speed
-    out = {"machine": _machine(),
-           "sim": [speed.sim_speed(layout, n, args.duration, args.seed) for layout, n in speed.SIM_CASES],
-           "fusion": speed.fusion_speed(50, 40, args.seed),
-           "controller": [speed.controller_speed(n, args.controller_duration, args.seed) for n in (11, 50)],
-           "memory": speed.memory_growth(6, args.memory_duration, args.seed),
-           "startup": speed.startup(5)}
+    measures = [(f"sim, {n} trains on {layout}", lambda layout=layout, n=n: speed.sim_speed(layout, n, args.duration,
+                                                                                           args.seed))
+                for layout, n in speed.SIM_CASES]
+    measures += [("fusion", lambda: speed.fusion_speed(50, 40, args.seed))]
+    measures += [(f"controller, {n} trains", lambda n=n: speed.controller_speed(n, args.controller_duration, args.seed))
+                 for n in (11, 50)]
+    measures += [("memory", lambda: speed.memory_growth(6, args.memory_duration, args.seed)),
+                 ("start-up", lambda: speed.startup(5))]
+    found = []
+    with steps("bench all", [name for name, _fn in measures], shown(args)) as step:
+        for name, measure in measures:
+            step(name)
+            found.append(measure())
+    n_sim = len(speed.SIM_CASES)
+    out = {"machine": _machine(), "sim": found[:n_sim], "fusion": found[n_sim],
+           "controller": found[n_sim + 1:n_sim + 3], "memory": found[n_sim + 3], "startup": found[n_sim + 4]}
     if args.json:
         print_json(out)
         return 0

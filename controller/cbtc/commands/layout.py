@@ -57,7 +57,9 @@ def run_show(args):
         print_json(info)
         return 0
     print(f"{info['name']} ({info['source']})")
-    print(f"{'closed loop' if info['closed'] else 'open line'}, {info['length_m']} m, {info['segments']} segments")
+    count = info["segments"]
+    print(f"{'closed loop' if info['closed'] else 'open line'}, {info['length_m']} m, {count} "
+          f"segment{'' if count == 1 else 's'}")
     if info["stations"]:
         print("\nstations:")
         print(format_table(info["stations"], [("name", "name"), ("s_m", "s m"), ("window_m", "window m")]))

@@ -20,9 +20,10 @@ def _quiet(*_args, **_fields):
 
 
 @contextmanager
-def bar(label: str, total: float, show: bool):
+def bar(label: str, total: float, show: bool, quiet_between: bool = False):
     """A bar named `label` towards `total`; yields `update(completed, text="")` (`text`: what has been done, in the
-    command's own words). With `show` False nothing is drawn and `update` does nothing."""
+    command's own words). With `show` False nothing is drawn and `update` does nothing. `quiet_between`: redrawn
+    only at each update, with no drawing thread (a benchmark's timings stay its own)."""
     if not show:
         yield _quiet
         return
@@ -31,12 +32,28 @@ def bar(label: str, total: float, show: bool):
 
     columns = (TextColumn(label), BarColumn(), TextColumn("{task.fields[text]}"), TimeElapsedColumn(),
                TextColumn("ETA"), TimeRemainingColumn())
-    with Progress(*columns, console=Console(stderr=True), transient=True) as progress, _logs_above():
+    with Progress(*columns, console=Console(stderr=True), transient=True, auto_refresh=not quiet_between) \
+            as progress, _logs_above():
         task = progress.add_task(label, total=total, text="")
 
         def update(completed, text=""):
-            progress.update(task, completed=completed, text=text)
+            progress.update(task, completed=completed, text=text, refresh=quiet_between)
         yield update
+
+
+@contextmanager
+def steps(label: str, names, show: bool):
+    """A bar over named steps measured one after the other (quiet between them); yields `step(name)`, called as
+    each begins."""
+    names = list(names)
+    with bar(label, len(names), show, quiet_between=True) as update:
+        done = [0]
+
+        def step(name):
+            update(done[0], f"{name} ({done[0] + 1}/{len(names)})")
+            done[0] += 1
+        yield step
+        update(len(names), "done")
 
 
 @contextmanager
