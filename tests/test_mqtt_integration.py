@@ -369,15 +369,15 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
 
 def test_a_key_mismatch_is_said_once_per_train_per_10_s_with_the_key_file_and_the_fix(mosquitto, tmp_path):
     """The zone holds keys from a file, the boards derive theirs from --sim-seed: every report fails
-    authentication. Over 12 s the zone says so at most twice per train (t = 0 and 10 s), naming the keys file and
+    authentication. Over 11 s the zone says so at most twice per train (t = 0 and 10 s), naming the keys file and
     the fix; the boards, which get no command, say that at most once per 10 s, naming where their keys come from."""
     keys = str(tmp_path / "keys.json")
     assert subprocess.run(cbtc("keys", "new", "--train-ids", "A,B", "--out", keys), capture_output=True).returncode == 0
     zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--layout", LAYOUT, "--train-ids", "A,B",
-                                 "--keys", keys, "--duration", "13", "--quiet"),
+                                 "--keys", keys, "--duration", "11.5", "--quiet"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     trains = subprocess.Popen(cbtc("trains", "--broker", mosquitto.url, "--layout", LAYOUT, "--trains", "2",
-                                   "--sim-seed", "0", "--duration", "12.5", "--quiet"),
+                                   "--sim-seed", "0", "--duration", "11", "--quiet"),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     zone_err = zone.communicate(timeout=40)[1]
     trains_err = trains.communicate(timeout=40)[1]

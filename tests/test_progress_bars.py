@@ -16,8 +16,8 @@ BAR = re.compile(r"━+.*ETA (\d+:\d\d:\d\d)")   # rich's bar, then the time lef
 
 
 def on_terminal(argv, stop_at=None, timeout_s=120.0):
-    """What `cbtc argv` draws on a pseudo-terminal 100 columns wide, its escape sequences removed; when `stop_at`
-    (a regex) is seen the command is stopped there."""
+    """(what `cbtc argv` draws on a pseudo-terminal 100 columns wide, its escape sequences removed; seconds until
+    `stop_at`, a regex, was seen, or None). When `stop_at` is seen the command is stopped there."""
     import pty
 
     master, slave = pty.openpty()
@@ -25,7 +25,8 @@ def on_terminal(argv, stop_at=None, timeout_s=120.0):
     proc = subprocess.Popen([sys.executable, "-m", "cbtc.cli", *argv], stdin=slave, stdout=slave, stderr=slave,
                             env=env)
     os.close(slave)
-    seen, deadline = "", time.monotonic() + timeout_s
+    started = time.monotonic()
+    seen, deadline, found_s = "", started + timeout_s, None
     try:
         while time.monotonic() < deadline:
             ready, _, _ = select.select([master], [], [], 1.0)
@@ -41,12 +42,13 @@ def on_terminal(argv, stop_at=None, timeout_s=120.0):
                 break
             seen += re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", chunk.decode(errors="replace"))
             if stop_at is not None and re.search(stop_at, seen):
+                found_s = time.monotonic() - started
                 break
     finally:
         proc.kill()
         proc.wait(timeout=30)
         os.close(master)
-    return seen
+    return seen, found_s
 
 
 CASES = {
@@ -61,9 +63,10 @@ CASES = {
 @pytest.mark.parametrize("name", ["sim", "compare", "campaign", pytest.param("fuzz", marks=requires_mosquitto)])
 def test_a_terminal_sees_a_bar_with_the_time_left_and_json_sees_none(name, tmp_path):
     argv = CASES[name] + (["--results", str(tmp_path / "r.jsonl")] if name == "campaign" else [])
-    drawn = on_terminal(argv, stop_at=BAR.pattern)
+    drawn, bar_s = on_terminal(argv, stop_at=BAR.pattern)
     assert BAR.search(drawn) and name in drawn, drawn[-2000:]
-    quiet = on_terminal(argv + ["--json"], stop_at=r"━", timeout_s=8.0 if name == "fuzz" else 120.0)
+    # under --json, watched for twice as long as the bar took to show its time left
+    quiet, _ = on_terminal(argv + ["--json"], stop_at=r"━", timeout_s=max(4.0, 2.0 * bar_s))
     assert "━" not in quiet and "ETA" not in quiet, quiet[-2000:]
 
 
