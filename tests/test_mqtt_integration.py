@@ -369,23 +369,19 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
 
 def test_a_key_mismatch_is_said_once_per_train_per_10_s_with_the_key_file_and_the_fix(mosquitto, tmp_path):
     """The zone holds keys from a file, the boards derive theirs from --sim-seed: every report fails
-    authentication. Over 11 s the zone says so at most twice per train (t = 0 and 10 s), naming the keys file and
-    the fix; the boards, which get no command, say that at most once per 10 s, naming where their keys come from."""
+    authentication, about a hundred a train in 6 s. The zone says so once per train, naming the keys file and the
+    fix (the 10 s between lines and their counts: test_zone_flood.py); nothing else is logged."""
     keys = str(tmp_path / "keys.json")
     assert subprocess.run(cbtc("keys", "new", "--train-ids", "A,B", "--out", keys), capture_output=True).returncode == 0
     zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--layout", LAYOUT, "--train-ids", "A,B",
-                                 "--keys", keys, "--duration", "11.5", "--quiet"),
+                                 "--keys", keys, "--duration", "6", "--quiet"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     trains = subprocess.Popen(cbtc("trains", "--broker", mosquitto.url, "--layout", LAYOUT, "--trains", "2",
-                                   "--sim-seed", "0", "--duration", "11", "--quiet"),
+                                   "--sim-seed", "0", "--duration", "5.5", "--quiet"),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     zone_err = zone.communicate(timeout=40)[1]
     trains_err = trains.communicate(timeout=40)[1]
     for train in ("A", "B"):
-        said = [line for line in zone_err.splitlines() if f"train {train}: wrong key" in line]
-        assert 1 <= len(said) <= 2, zone_err
-        assert all(f"keys file {keys}" in line and "cbtc flash --keys FILE" in line and len(line) - len(keys) < 250
-                   for line in said), (keys, said)
-        silent = [line for line in trains_err.splitlines() if f"train {train}: no command taken" in line]
-        assert len(silent) <= 2 and all("--sim-seed 0" in line for line in silent), trains_err
-    assert len(zone_err.splitlines()) <= 6, zone_err
+        (said,) = [line for line in zone_err.splitlines() if f"train {train}: wrong key" in line]
+        assert f"keys file {keys}" in said and "cbtc flash --keys FILE" in said and len(said) - len(keys) < 220, said
+    assert len(zone_err.splitlines()) == 2 and not trains_err, (zone_err, trains_err)

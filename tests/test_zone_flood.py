@@ -80,3 +80,42 @@ def test_a_flood_of_bad_reports_is_counted_quietly_with_flat_memory(mosquitto):
     assert len(lines.lines) <= 20, lines.lines
     assert all(len(line) <= 200 for line in lines.lines), lines.lines
     assert grown < 2 * 1024 * 1024
+
+
+class Quiet:
+    """A bus client that takes every command and delivers nothing."""
+
+    def subscribe(self, topic_filter, callback):
+        pass
+
+    def unsubscribe(self, topic_filter):
+        pass
+
+    def publish(self, topic, payload, retain=False):
+        pass
+
+
+def test_a_board_with_another_key_is_said_once_per_10_s_with_the_count_the_key_source_and_the_fix():
+    """Reports sealed with a key the zone does not hold, at 20 Hz for 25 s of zone time: three lines for the train
+    (at 0, 10 and 20 s), each with the count since the one before, where the zone's key is from, and what to do."""
+    config = paper_scenario(load_layout("itb_square"), seed=0, laps=None, duration_s=30.0)
+    keys = {spec.train_id: bytes(16) for spec in config.trains}
+    now = [0.0]
+    zc = build_zone(config, keys, Quiet(), lambda: now[0])
+    zc.key_source = "keys file keys.json"
+    lines = Lines()
+    logger = logging.getLogger("cbtc.zone")
+    logger.addHandler(lines)
+    try:
+        zc.start()
+        for i in range(500):
+            now[0] = i * 0.05
+            zc.on_report(wire.topic_report("A"), wire.encode_report(b"another key 16 b", "A", 1, i, i * 50, 0, 0, 0,
+                                                                    "idle", -1, -1, None, [], []))
+    finally:
+        logger.removeHandler(lines)
+    said = [line for line in lines.lines if line.startswith("train A: wrong key")]
+    assert len(said) == 3 and len(lines.lines) == 3, lines.lines
+    assert "(x200 since this line last)" in said[1] and "(x200 since this line last)" in said[2]
+    assert all("keys file keys.json" in line and "cbtc flash --keys FILE" in line for line in said)
+    assert zc.trains["A"].reports_rejected == 500 and zc.refusals.total("A") == 500
