@@ -538,8 +538,10 @@ class ZoneController:
             return
         if alarm and not state.gap_alarm:
             state.gap_alarms += 1
-            log.warning("train %s: picture disagrees: estimated gap %.3f m, measured %.3f m", state.train_id,
-                        gap_est_m, state.rng_gap[1])
+            log.warning("train %s: picture disagrees: estimated gap %.3f m, measured %.3f m by its ranging; %s",
+                        state.train_id, gap_est_m, state.rng_gap[1],
+                        "the authority takes the shorter; check the two trains' IPS and wheels" if self.use_measured_gap
+                        else "the authority rests on the estimate alone; the board's guard brakes on the measurement")
         state.gap_alarm = alarm
 
     def _answer(self, state, now_s):
