@@ -5,6 +5,7 @@ import time
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import format_table, print_json
+from cbtc.commands.progress_bar import shown, simulation_bar
 from cbtc.errors import ConfigError
 from cbtc.zone.config import paper_scenario
 
@@ -47,7 +48,8 @@ def run(args):
         for spec in config.trains:
             spec.profile = spec.profile.with_changes(ips_sigma_m=args.ips_sigma)
     started = time.perf_counter()
-    recorder = Simulation(config, keep_reports=True, keep_samples=True).run()
+    with simulation_bar("fusion", 1, shown(args)):   # --laps 20 runs for a while
+        recorder = Simulation(config, keep_reports=True, keep_samples=True).run()
     rows, traces = fusion_table(layout, records_from_recorder(recorder))
     checks = paper_ordering_holds(rows)
     wall_s = time.perf_counter() - started
