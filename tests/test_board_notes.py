@@ -3,7 +3,18 @@
 import logging
 from types import SimpleNamespace
 
+import pytest
+
 from cbtc.live.board_notes import BoardNotes
+from cbtc.protocol import wire
+
+
+def wrong_key_reason():
+    """The reason the wire module gives a command sealed with a key other than the board's."""
+    payload = wire.encode_command(b"another key 16 b", "A", 1, 1, 7, 1, 400, 1000, 800, 600, 800)
+    with pytest.raises(wire.AuthError) as refused:
+        wire.decode_command(bytes(16), wire.topic_command("A"), payload)
+    return refused.value.reason
 
 
 def unit(rejected=0, last_reject=None, cseq=-1):
@@ -26,7 +37,7 @@ def test_a_flood_of_refused_commands_is_one_line_with_its_count_and_the_fix_for_
     assert "refused 600 commands" in lines[1]
     caplog.clear()
     train.obu.rejected += 3
-    train.obu.last_reject = "payload on cbtc/train/A/cmd fails authentication (wrong key, or altered in transit)"
+    train.obu.last_reject = wrong_key_reason()   # what the board keeps of a command sealed with another key
     notes.check(30.0)
     (line,) = [r.getMessage() for r in caplog.records]
     assert "refused 591 commands" in line and "key (from keys file k.json) is not the zone's" in line

@@ -131,11 +131,9 @@ def run_sim(args):
     if (args.layout is None) != (args.trains is None):
         raise ConfigError("bench sim: give --layout and --trains together, or neither (the three standard cases)")
     cases = speed.SIM_CASES if args.layout is None else ((args.layout, args.trains),)
-    rows = []
-    with steps("bench sim", [f"{n} trains on {layout}" for layout, n in cases], shown(args)) as step:
-        for layout, n in cases:
-            step(f"{n} trains on {layout}")
-            rows.append(speed.sim_speed(layout, n, args.duration, args.seed))
+    with steps("bench sim", len(cases), shown(args)) as step:
+        rows = [step(f"{n} trains on {layout}", speed.sim_speed, layout, n, args.duration, args.seed)
+                for layout, n in cases]
     return _emit(args, "sim", rows, _print_sim)
 
 
@@ -166,11 +164,8 @@ def _print_fusion(row):
 def run_controller(args):
     from cbtc.experiments import speed
     counts = (args.trains,) if args.trains else (11, 50)
-    rows = []
-    with steps("bench controller", [f"{n} trains" for n in counts], shown(args)) as step:
-        for n in counts:
-            step(f"{n} trains")
-            rows.append(speed.controller_speed(n, args.duration, args.seed))
+    with steps("bench controller", len(counts), shown(args)) as step:
+        rows = [step(f"{n} trains", speed.controller_speed, n, args.duration, args.seed) for n in counts]
     return _emit(args, "controller", rows, _print_controller)
 
 
@@ -198,22 +193,15 @@ def _print_memory(row):
 def run_all(args):
     """Every figure the simulation-speed work is judged by, measured one after the other in one process's run."""
     from cbtc.experiments import speed
-    measures = [(f"sim, {n} trains on {layout}", lambda layout=layout, n=n: speed.sim_speed(layout, n, args.duration,
-                                                                                           args.seed))
-                for layout, n in speed.SIM_CASES]
-    measures += [("fusion", lambda: speed.fusion_speed(50, 40, args.seed))]
-    measures += [(f"controller, {n} trains", lambda n=n: speed.controller_speed(n, args.controller_duration, args.seed))
-                 for n in (11, 50)]
-    measures += [("memory", lambda: speed.memory_growth(6, args.memory_duration, args.seed)),
-                 ("start-up", lambda: speed.startup(5))]
-    found = []
-    with steps("bench all", [name for name, _fn in measures], shown(args)) as step:
-        for name, measure in measures:
-            step(name)
-            found.append(measure())
-    n_sim = len(speed.SIM_CASES)
-    out = {"machine": _machine(), "sim": found[:n_sim], "fusion": found[n_sim],
-           "controller": found[n_sim + 1:n_sim + 3], "memory": found[n_sim + 3], "startup": found[n_sim + 4]}
+    with steps("bench all", len(speed.SIM_CASES) + 5, shown(args)) as step:
+        out = {"machine": _machine(),
+               "sim": [step(f"sim, {n} trains on {layout}", speed.sim_speed, layout, n, args.duration, args.seed)
+                       for layout, n in speed.SIM_CASES],
+               "fusion": step("fusion", speed.fusion_speed, 50, 40, args.seed),
+               "controller": [step(f"controller, {n} trains", speed.controller_speed, n, args.controller_duration,
+                                   args.seed) for n in (11, 50)],
+               "memory": step("memory", speed.memory_growth, 6, args.memory_duration, args.seed),
+               "startup": step("start-up", speed.startup, 5)}
     if args.json:
         print_json(out)
         return 0

@@ -42,18 +42,19 @@ def bar(label: str, total: float, show: bool, quiet_between: bool = False):
 
 
 @contextmanager
-def steps(label: str, names, show: bool):
-    """A bar over named steps measured one after the other (quiet between them); yields `step(name)`, called as
-    each begins."""
-    names = list(names)
-    with bar(label, len(names), show, quiet_between=True) as update:
+def steps(label: str, count: int, show: bool):
+    """A bar over `count` measures made one after the other (redrawn only between them); yields
+    `step(name, measure, *args)`, which names the measure on the bar, makes it and returns what it gives."""
+    with bar(label, count, show, quiet_between=True) as update:
         done = [0]
 
-        def step(name):
-            update(done[0], f"{name} ({done[0] + 1}/{len(names)})")
+        def step(name, measure, *args):
+            update(done[0], f"{name} ({done[0] + 1}/{count})")
+            found = measure(*args)
             done[0] += 1
+            return found
         yield step
-        update(len(names), "done")
+        update(count, "done")
 
 
 @contextmanager
