@@ -120,8 +120,35 @@ def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 
     bound of the board's odometer millimetres per true metre (its encoder's scale, 1000: it reads true), which the
     board's braking curves scale its decelerations by, so they hold in true metres.
     """
-    msg = {"v": VERSION, "k": "cmd", "id": train_id, "boot": boot, "seq": seq, "sid": sid, "rseq": rseq,
-           "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
-           "stop_mm": eoa_mm if stop_mm is None else stop_mm, "rpt_ms": rpt_ms,
-           "odo_mm_per_m": odo_mm_per_m}
-    return seal(key, topic_command(train_id), dumps_compact(msg).encode())
+    if stop_mm is None:
+        stop_mm = eoa_mm
+    ints = (boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm, rpt_ms, odo_mm_per_m)
+    topic = topic_command(train_id)
+    if _plain_id(train_id) and all(type(value) is int for value in ints):
+        # the bytes json.dumps writes for these types (an int's repr; an id of letters, digits, '_' and '-'), made
+        # at a fifth of its cost: a zone sends a command for most reports
+        body = _COMMAND_JSON % ((VERSION, train_id) + ints)
+    else:   # whatever a caller passes (a test's bool, float or odd id) is written as JSON writes it
+        msg = {"v": VERSION, "k": "cmd", "id": train_id}
+        for i in range(len(ints)):
+            msg[_COMMAND_KEYS[i]] = ints[i]
+        body = dumps_compact(msg)
+    return seal(key, topic, body.encode())
+
+
+_COMMAND_KEYS = ("boot", "seq", "sid", "rseq", "v_mmps", "eoa_mm", "ttl_ms", "acc", "dec", "stop_mm", "rpt_ms",
+                 "odo_mm_per_m")
+_COMMAND_JSON = '{"v":%d,"k":"cmd","id":"%s",' + ",".join('"%s":%%d' % name for name in _COMMAND_KEYS) + "}"
+
+
+def _plain_id(train_id):
+    """True for a str of letters, digits, '_' and '-' (what check_train_id allows): JSON writes it unescaped."""
+    if type(train_id) is not str:
+        return False
+    for ch in train_id:
+        if ch not in _ID_CHARS:
+            return False
+    return True
+
+
+_ID_CHARS = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-"

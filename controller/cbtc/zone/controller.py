@@ -59,6 +59,7 @@ class TrainState:
 
     def __init__(self, setup: TrainSetup, estimator, rank: int = 0, on_change=None):
         self.setup = setup
+        self.train_id = setup.train_id
         self.estimator = estimator
         self.rank = rank             # its place in the zone's list of trains: ties in position go by it
         self.on_change = on_change   # called with this state when its position may have changed
@@ -104,10 +105,6 @@ class TrainState:
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
         self._memo_key = None        # (estimator, reports_taken) the values in _memo were made for
         self._memo = {}              # what the zone asks of this train per report: its estimate, picture, scale bounds
-
-    @property
-    def train_id(self):
-        return self.setup.train_id
 
     def _per_report(self):
         """The values kept for the newest report: they change only with a report taken or a new estimator, so the
@@ -170,8 +167,10 @@ class ZoneController:
         self._moved = set()       # states with a new report, or located afresh, since the order was last brought up
         self._order = []          # (s_m, rank, state) of the located trains, sorted
         self._placed = {}         # state -> its entry in _order
-        self._located = []        # the states of _order
+        self._located = []        # the states of _order, in its order (kept beside it, changed in place)
         self._departing = {}      # train id -> state, trains whose newest authority is a departure
+        self._departing_for = {}  # state -> the profiles of the departing trains but it (Situation.departing), kept
+        #                           until a train's departure begins or ends
         self._fast_wanting = {}   # train id -> state, trains asked for fast reports (some may have lapsed)
         self._unanswered = set()  # states whose newest report does not echo this controller's session
         self._heard = []          # heap of (receive time, rank, state) of reports taken; entries a newer report of
@@ -397,21 +396,25 @@ class ZoneController:
     def located(self):
         """Train states with a finite position estimate, ordered by head position along the track (ties in the zone's
         order). Kept as an index: only the trains whose position may have changed since (a report taken, located
-        afresh) are placed again, so a report costs the same whatever the fleet. The list is shared: read it only."""
+        afresh) are placed again, so a report costs the same whatever the fleet. The list is changed in place by the
+        next call: read it at once, never change it."""
         if self._moved:
             moved = sorted(self._moved, key=lambda st: st.rank)
             self._moved.clear()
             for st in moved:
                 old = self._placed.pop(st, None)
                 if old is not None:
-                    del self._order[bisect.bisect_left(self._order, old)]
+                    i = bisect.bisect_left(self._order, old)
+                    del self._order[i]
+                    del self._located[i]
                 if st.report is not None and st.estimator.localized:
                     s_m = self._position_m(st)   # may locate it afresh (its filter failed): then None
                     if s_m is not None and st not in self._moved:
                         entry = (s_m, st.rank, st)
-                        bisect.insort(self._order, entry)
+                        i = bisect.bisect_right(self._order, entry)
+                        self._order.insert(i, entry)
+                        self._located.insert(i, st)
                         self._placed[st] = entry
-            self._located = [entry[2] for entry in self._order]
         return self._located
 
     def _position_m(self, state):
@@ -494,8 +497,11 @@ class ZoneController:
 
     def _situation(self, state, leader, now_s):
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
-        departing = tuple(other.setup.profile for other in sorted(self._departing.values(), key=lambda st: st.rank)
-                          if other is not state) if self._departing else ()
+        departing = self._departing_for.get(state) if self._departing else ()
+        if departing is None:
+            departing = self._departing_for[state] = tuple(
+                other.setup.profile for other in sorted(self._departing.values(), key=lambda st: st.rank)
+                if other is not state)
         return Situation(self.layout, now_s, self.cycle_s, state.picture(),
                          None if leader is None else leader.picture(), state.rng_gap, self.ranging_sigma_m,
                          self.use_measured_gap, departing, self._spans() if self.policy.needs_spans else ())
@@ -520,10 +526,12 @@ class ZoneController:
         """Keep what `state`'s new authority rests on, and raise the "picture disagrees" alarm when it does."""
         state.authority = auth
         state.mode = auth.mode
-        if auth.mode == "departure":
-            self._departing[state.train_id] = state
-        else:
-            self._departing.pop(state.train_id, None)
+        if (auth.mode == "departure") != (state.train_id in self._departing):
+            if auth.mode == "departure":
+                self._departing[state.train_id] = state
+            else:
+                del self._departing[state.train_id]
+            self._departing_for.clear()
         if log.isEnabledFor(logging.DEBUG):
             log.debug("train %s: authority %.3f m (%s), limited by %s", state.train_id, auth.distance_m, auth.mode,
                       auth.reason)
@@ -688,6 +696,8 @@ class ZoneController:
         whose followers have the least authority left."""
         if now_s >= state.fast_until_s or not self.policy.fast_reports or not self.fast_slots:
             return False
+        if len(self._fast_wanting) <= self.fast_slots:   # it is among them: no more of them than slots
+            return True
         lapsed = [train_id for train_id, st in self._fast_wanting.items() if now_s >= st.fast_until_s]
         for train_id in lapsed:
             del self._fast_wanting[train_id]
