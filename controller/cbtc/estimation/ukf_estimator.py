@@ -180,6 +180,7 @@ class UkfEstimator:
         self._doubt_span = None      # (low, high) track positions from before a fresh start (keep_doubt)
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
+        self._filter_holds = None    # the state whose snapshot _filter holds as it stands (no restore needed)
         self._board_odo_m = None     # the newest report's odometer, as the board counts it
         self._first_odo_m = None     # the first report's: tag reads at it may come from a train standing on the tag
         self._board_t_s = None       # the newest report's board time (s)
@@ -430,6 +431,7 @@ class UkfEstimator:
         if state is None:
             return self._locate(event)
         f = self._load(state)
+        self._filter_holds = None   # until this apply has made its state
         f.predict_to(event.t_s)
         new = state.copy_with(None)
         if event.kind == "odo":
@@ -488,6 +490,7 @@ class UkfEstimator:
                 new.disagreements += 1
         self._keep_wheel_in_doubt(f)
         new.snap = f.snapshot()
+        self._filter_holds = new
         return new
 
     def _keep_wheel_in_doubt(self, f):
@@ -562,7 +565,7 @@ class UkfEstimator:
         if self._filter is None:
             t_s, x, P = state.snap
             self._filter = TrackUkf(self.layout, self.noise, x, P, t_s)
-        else:
+        elif self._filter_holds is not state:
             self._filter.restore(state.snap)
         return self._filter
 
@@ -613,6 +616,7 @@ class UkfEstimator:
         P0 = initial_covariance(len(x0), sigma_s_m, sigma_v_mps, 0.002, self._scale_sigma0)
         self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
         used.snap = self._filter.snapshot()
+        self._filter_holds = used
         return used
 
     def _odometer_at(self, t_s):

@@ -172,6 +172,7 @@ class ZoneController:
         self._departing_for = {}  # state -> the profiles of the departing trains but it (Situation.departing), kept
         #                           until a train's departure begins or ends
         self._fast_wanting = {}   # train id -> state, trains asked for fast reports (some may have lapsed)
+        self._fast_lapse_s = 0.0  # none of them lapses before then (so they need no sweep for lapsed ones)
         self._unanswered = set()  # states whose newest report does not echo this controller's session
         self._heard = []          # heap of (receive time, rank, state) of reports taken; entries a newer report of
         #                           its train replaced are dropped when they come to the top
@@ -696,17 +697,20 @@ class ZoneController:
         whose followers have the least authority left."""
         if now_s >= state.fast_until_s or not self.policy.fast_reports or not self.fast_slots:
             return False
-        if len(self._fast_wanting) <= self.fast_slots:   # it is among them: no more of them than slots
+        wanting = self._fast_wanting
+        if len(wanting) <= self.fast_slots:   # it is among them: no more of them than slots
             return True
-        lapsed = [train_id for train_id, st in self._fast_wanting.items() if now_s >= st.fast_until_s]
-        for train_id in lapsed:
-            del self._fast_wanting[train_id]
-        wanting = list(self._fast_wanting.values())
-        if len(wanting) <= self.fast_slots:
-            return True
+        if now_s >= self._fast_lapse_s:
+            for train_id in [train_id for train_id, st in wanting.items() if now_s >= st.fast_until_s]:
+                del wanting[train_id]
+            # a train's time only grows, and one asked from now on is asked until now + fast_hold_s at least
+            self._fast_lapse_s = min([st.fast_until_s for st in wanting.values()] + [now_s + self.params.fast_hold_s])
+            if len(wanting) <= self.fast_slots:
+                return True
         # its place among them, least authority left first (ties by id): one pass, no sort per command
-        key = (state.fast_need_m, state.train_id)
-        return sum(1 for st in wanting if (st.fast_need_m, st.train_id) < key) < self.fast_slots
+        need_m, train_id = state.fast_need_m, state.train_id
+        return sum(1 for st in wanting.values() if st.fast_need_m < need_m or (
+            st.fast_need_m == need_m and st.train_id < train_id)) < self.fast_slots
 
     def stop_all(self, now_s: float) -> None:
         """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
