@@ -11,6 +11,8 @@ eqs. 24-26, cbtc.authority.control_laws):
 The onboard braking curve to the end of authority stays the safety net under both.
 """
 
+import functools
+
 from cbtc.authority.control_laws import (
     departure_accelerations_mps2,
     departure_k_for,
@@ -101,10 +103,15 @@ class MovingBlockPolicy:
         """Eqs. 25-26: the follower of a departing pair accelerates at alpha_B, its leader at alpha_A = k beta_s."""
         profile = sit.own.profile
         if mode == "departure" and sit.leader is not None:
-            k = departure_k_for(sit.leader.profile.accel_max_mps2, profile.accel_max_mps2, profile.beta_s_mps2)
-            return departure_accelerations_mps2(k, profile.beta_s_mps2)[1]
+            return _departure_pair(sit.leader.profile.accel_max_mps2, profile.accel_max_mps2, profile.beta_s_mps2)[1]
         # am I the leader of a pair standing at minimum distance?
         if sit.departing and sit.own.v_mps <= 0.5 * profile.v_max_mps:
-            k = departure_k_for(profile.accel_max_mps2, sit.departing[0].accel_max_mps2, profile.beta_s_mps2)
-            return departure_accelerations_mps2(k, profile.beta_s_mps2)[0]
+            return _departure_pair(profile.accel_max_mps2, sit.departing[0].accel_max_mps2, profile.beta_s_mps2)[0]
         return acc
+
+
+@functools.lru_cache(maxsize=256)
+def _departure_pair(accel_max_leader_mps2, accel_max_follower_mps2, beta_s_mps2):
+    """(alpha_A, alpha_B) of a pair departing together (eqs. 25-26): a few profiles, asked on every authority."""
+    k = departure_k_for(accel_max_leader_mps2, accel_max_follower_mps2, beta_s_mps2)
+    return departure_accelerations_mps2(k, beta_s_mps2)

@@ -297,10 +297,20 @@ class TrackUkf:
         odometer is a state, so the unscented update is exactly the Kalman update, done here in closed form."""
         x, P = self.mean, self.cov
         s_m2 = P[D][D] + self.noise.odo_var_m2
-        gains = [row[D] / s_m2 for row in P]
         y = float(d_m) - x[D]
-        self.mean = [xi + g * y for xi, g in zip(x, gains)]
-        self.cov = [[p - gs * h for p, h in zip(row, gains)] for row, gs in zip(P, [g * s_m2 for g in gains])]
+        if len(x) == 4:   # the usual state, written out: the same operations in the same order as below
+            r0, r1, r2, r3 = P
+            g0, g1, g2, g3 = r0[D] / s_m2, r1[D] / s_m2, r2[D] / s_m2, r3[D] / s_m2
+            self.mean = [x[0] + g0 * y, x[1] + g1 * y, x[2] + g2 * y, x[3] + g3 * y]
+            h0, h1, h2, h3 = g0 * s_m2, g1 * s_m2, g2 * s_m2, g3 * s_m2
+            self.cov = [[r0[0] - h0 * g0, r0[1] - h0 * g1, r0[2] - h0 * g2, r0[3] - h0 * g3],
+                        [r1[0] - h1 * g0, r1[1] - h1 * g1, r1[2] - h1 * g2, r1[3] - h1 * g3],
+                        [r2[0] - h2 * g0, r2[1] - h2 * g1, r2[2] - h2 * g2, r2[3] - h2 * g3],
+                        [r3[0] - h3 * g0, r3[1] - h3 * g1, r3[2] - h3 * g2, r3[3] - h3 * g3]]
+        else:
+            gains = [row[D] / s_m2 for row in P]
+            self.mean = [xi + g * y for xi, g in zip(x, gains)]
+            self.cov = [[p - gs * h for p, h in zip(row, gains)] for row, gs in zip(P, [g * s_m2 for g in gains])]
         self._settle()
         return True
 

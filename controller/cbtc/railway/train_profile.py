@@ -65,7 +65,14 @@ class TrainProfile:
     def stop_window_mm(self) -> int:
         """Where the board's service curve ends short of the end of authority (mm): the firmware's default, or wider
         where the reaction time would bring the service curve onto the trip curve (firmware/obu.py checks the same:
-        reaction^2 dec emergency / (2 (emergency - dec)))."""
+        reaction^2 dec emergency / (2 (emergency - dec))). Worked out once per profile: a zone asks it per command."""
+        window_mm = self.__dict__.get("_stop_window_mm")
+        if window_mm is None:
+            window_mm = self._work_out_stop_window_mm()
+            object.__setattr__(self, "_stop_window_mm", window_mm)   # a cache, not a field: equality ignores it
+        return window_mm
+
+    def _work_out_stop_window_mm(self) -> int:
         r_s = int(round(self.reaction_s * 1000)) / 1000
         dec, emergency = int(round(self.beta_s_mps2 * 1000)), int(round(self.beta_e_mps2 * 1000))
         need_mm = r_s * r_s * dec * emergency / (2 * (emergency - dec)) if emergency > dec else math.inf

@@ -173,6 +173,7 @@ class ZoneController:
         #                           until a train's departure begins or ends
         self._fast_wanting = {}   # train id -> state, trains asked for fast reports (some may have lapsed)
         self._fast_lapse_s = 0.0  # none of them lapses before then (so they need no sweep for lapsed ones)
+        self._fast_ranked = []    # (authority left to the follower m, train id) of each of them, sorted
         self._unanswered = set()  # states whose newest report does not echo this controller's session
         self._heard = []          # heap of (receive time, rank, state) of reports taken; entries a newer report of
         #                           its train replaced are dropped when they come to the top
@@ -473,9 +474,7 @@ class ZoneController:
             stop_m = self._station_stop(state, now_s)
             if leader is not None and safe_m < following_reach_m(state.setup.profile):
                 # this train is held by the one ahead: ask that one for fast reports, for a while
-                leader.fast_until_s = now_s + self.params.fast_hold_s
-                self._fast_wanting[leader.train_id] = leader
-                leader.fast_need_m = safe_m
+                self._want_fast(leader, safe_m, now_s)
             state.limited_by = auth.reason
         else:
             safe_m = None
@@ -701,16 +700,31 @@ class ZoneController:
         if len(wanting) <= self.fast_slots:   # it is among them: no more of them than slots
             return True
         if now_s >= self._fast_lapse_s:
-            for train_id in [train_id for train_id, st in wanting.items() if now_s >= st.fast_until_s]:
-                del wanting[train_id]
+            for st in [st for st in wanting.values() if now_s >= st.fast_until_s]:
+                del wanting[st.train_id]
+                self._unrank_fast(st)
             # a train's time only grows, and one asked from now on is asked until now + fast_hold_s at least
             self._fast_lapse_s = min([st.fast_until_s for st in wanting.values()] + [now_s + self.params.fast_hold_s])
             if len(wanting) <= self.fast_slots:
                 return True
-        # its place among them, least authority left first (ties by id): one pass, no sort per command
-        need_m, train_id = state.fast_need_m, state.train_id
-        return sum(1 for st in wanting.values() if st.fast_need_m < need_m or (
-            st.fast_need_m == need_m and st.train_id < train_id)) < self.fast_slots
+        # its place among them, least authority left first (ties by id)
+        return bisect.bisect_left(self._fast_ranked, (state.fast_need_m, state.train_id)) < self.fast_slots
+
+    def _want_fast(self, state, need_m, now_s):
+        """`state`'s follower is held by it with `need_m` of authority left: ask it for fast reports for a while."""
+        state.fast_until_s = now_s + self.params.fast_hold_s
+        if state.train_id in self._fast_wanting:
+            if state.fast_need_m == need_m:
+                return
+            self._unrank_fast(state)
+        else:
+            self._fast_wanting[state.train_id] = state
+        state.fast_need_m = need_m
+        bisect.insort(self._fast_ranked, (need_m, state.train_id))
+
+    def _unrank_fast(self, state):
+        ranked = self._fast_ranked
+        del ranked[bisect.bisect_left(ranked, (state.fast_need_m, state.train_id))]
 
     def stop_all(self, now_s: float) -> None:
         """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
