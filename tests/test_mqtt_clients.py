@@ -11,10 +11,10 @@ import time
 
 import pytest
 
-from cbtc.bus.client import BusClient
+from cbtc.bus.client import BusClient, parse_broker_url, topic_qos
 from cbtc.bus.lean_bus import LeanBus
 from cbtc.bus.net_loop import NetLoop
-from cbtc.bus.paho_bus import PahoBus, parse_broker_url, topic_qos
+from cbtc.bus.paho_bus import PahoBus
 from cbtc.errors import BusError, ConfigError
 
 

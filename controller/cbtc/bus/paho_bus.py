@@ -23,8 +23,7 @@ import time
 
 import paho.mqtt.client as mqtt
 
-from cbtc.bus.client import (  # noqa: F401  (the connection policy, also read from here)
-    DEFAULT_PORT,
+from cbtc.bus.client import (
     OFFLINE,
     ONLINE,
     BusClient,
