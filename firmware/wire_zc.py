@@ -146,9 +146,6 @@ def _plain_id(train_id):
     if type(train_id) is not str:
         return False
     for ch in train_id:
-        if ch not in _ID_CHARS:
+        if ch not in wire.ID_CHARS:
             return False
     return True
-
-
-_ID_CHARS = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-"
