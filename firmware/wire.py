@@ -36,7 +36,6 @@ BOOT_MAX = const(1073741823)  # boot ids are 1..2^30-1: a small int on the board
 _MAC_BYTES = const(16)        # MAC length on the wire: the first 16 bytes of the HMAC, as 32 hex digits
 MAX_PAYLOAD = const(1024)     # longest payload accepted (bytes); the board's link drops longer messages unread
 _ID_MAX_LEN = const(16)       # longest train id (characters)
-ID_CHARS = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-"   # what a train id is made of
 
 
 try:
@@ -88,7 +87,7 @@ def check_train_id(train_id):
     if not isinstance(train_id, str) or not 1 <= len(train_id) <= _ID_MAX_LEN:
         raise WireError("train id %r must be a string of 1-%d characters" % (train_id, _ID_MAX_LEN))
     for ch in train_id:
-        if ch not in ID_CHARS:
+        if ch not in "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-":
             raise WireError("train id %r has %r: use letters, digits, '_' or '-'" % (train_id, ch))
     return train_id
 

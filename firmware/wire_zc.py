@@ -142,10 +142,9 @@ _COMMAND_JSON = '{"v":%d,"k":"cmd","id":"%s",' + ",".join('"%s":%%d' % name for 
 
 
 def _plain_id(train_id):
-    """True for a str of letters, digits, '_' and '-' (what check_train_id allows): JSON writes it unescaped."""
-    if type(train_id) is not str:
+    """True for an id check_train_id allows (letters, digits, '_' and '-'): JSON writes it unescaped."""
+    try:
+        wire.check_train_id(train_id)
+    except WireError:
         return False
-    for ch in train_id:
-        if ch not in wire.ID_CHARS:
-            return False
     return True
