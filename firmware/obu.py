@@ -54,6 +54,7 @@ _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
 _US_WRAP = const(262144000)   # edge times (us) wrap with the board's ms at 2^18: small ints; spans are < 1 s
 _LEFT_SIDS = const(4)    # sessions remembered as left: a replayed command of any of them is refused
 _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
+_STOP_MADE_MM = const(3)  # braked this near a station's mark, the stop is made: held there, not driven up to it (mm)
 _ENC_COUNTS = const(3)   # counts the train surely travelled without one coming: the encoder has failed
 _ADHESION_MMPS2 = const(3000)  # no train stops faster than this (wheel adhesion): counts must keep coming (mm/s^2)
 _ENC_HOLD_MS = const(2000)     # a failed encoder holds the train braked this long after its last sign (ms)
@@ -80,6 +81,7 @@ class OnboardUnit:
     _v_edge = 0              # measured speed at the newest count (mm/s)
     _ref_mm = 0.0            # travel the speed reference asked for since the newest count (mm)
     _sat_ms = 0              # how long the drive has been at its ceiling with the train slower than asked (ms)
+    _undriven = False        # some pass since the last report braked or drove at zero duty
     _left_sids = ()          # controller sessions this unit has left (newest last)
 
     def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
@@ -354,6 +356,8 @@ class OnboardUnit:
         cmd = self.cmd
         if cmd is not None and cmd["stop_mm"] < end_mm:   # the stop target of the newest command (a station)
             end_mm = cmd["stop_mm"]
+            if self.duty_pct == 0 and end_mm - self.odo_mm <= _STOP_MADE_MM:
+                return 0.0   # braking (or braked) onto the mark: stop here rather than drive the last mm again
         dist_mm = end_mm - self.odo_mm
         if dist_mm <= 0:
             return 0.0
@@ -471,9 +475,12 @@ class OnboardUnit:
             # the motor's own drag at zero duty (v / tau: weak at low speed) is less braking than the curve asks:
             # short the windings for this pass (brake: it cannot reverse the train, as a negative duty could)
             self.duty_pct = 0
+            self._undriven = True
             self.motor.brake()
             return
         duty_pct = int(max(0.0, min(100.0, duty)))
+        if duty_pct == 0:
+            self._undriven = True
         if duty_pct > 30 >= self.duty_pct:   # the stall clock runs from when the drive is applied, not from standstill
             self._last_move_ms = now_ms
         self.duty_pct = duty_pct
@@ -485,6 +492,7 @@ class OnboardUnit:
         self._integral = 0.0
         self._a_lp = 0.0
         self.duty_pct = 0
+        self._undriven = True
         self.motor.brake()
 
     # --- reporting ----------------------------------------------------------------------------------------------
@@ -513,6 +521,12 @@ class OnboardUnit:
         if self._rolled:
             faults.append("roll")
             self._rolled = False
+        if self._undriven:
+            # driven now, but not at every pass since the last report: its speed may have fallen as fast as the
+            # brake allows, which the duty alone would not tell the controller
+            if self.duty_pct > 0 and self.mode == "run":
+                faults.append("undriven")
+            self._undriven = False
         self.faults = faults
         seq = self.seq
         slot = seq % _HISTORY

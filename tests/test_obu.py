@@ -369,6 +369,54 @@ def test_a_station_stop_is_a_service_target_that_never_trips():
     assert bench.unit.trips == 1 and bench.motor.mode == "brake"
 
 
+def test_a_train_braked_onto_a_station_mark_a_mm_short_is_held_there_not_driven_up_to_it():
+    """Within 3 mm of the stop target, with the drive cut, the stop is made: the service curve is zero and the train
+    holds (creeping the last mm cost a tenth of a second a stop); further off, or short of an end of authority
+    rather than a station, it is driven on."""
+    for stop_ahead_mm, drives in ((2, False), (3, False), (10, True)):
+        bench = Bench()
+        bench.step()
+        unit = bench.unit
+        bench.command(v_mmps=500, eoa_mm=unit.odo_mm + 3000, stop_mm=unit.odo_mm + stop_ahead_mm, ttl_ms=10_000)
+        moves = []
+        for _ in range(10):
+            bench.step()
+            moves.append(bench.motor.mode == "drive" and unit.duty_pct > 0)
+        assert any(moves) == drives, (stop_ahead_mm, moves)
+    bench = Bench()
+    bench.step()
+    bench.command(v_mmps=500, eoa_mm=bench.unit.odo_mm + bench.unit.cfg["stop_window_mm"] + 2, ttl_ms=10_000)
+    bench.step()
+    assert bench.unit.braking_curve_mmps(800) > 0, "an end of authority is no station: its curve is unchanged"
+
+
+def test_a_report_names_undriven_when_a_pass_since_the_previous_one_braked_while_it_drives_now():
+    """Riding a braking curve, the loop brakes for a pass and drives again between two reports: the report's duty
+    alone would say driven throughout, so it names `undriven` (the controller then allows the brake's fall in speed
+    over the interval); a report of a train driven at every pass, or not driven now, does not."""
+    bench = _running_at(600)
+    unit = bench.unit
+    for _ in range(10):   # steady at the commanded speed: driven at every pass
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+    assert unit.duty_pct > 0 and "undriven" not in bench.last_report()["flt"]
+    bench.command(v_mmps=100, eoa_mm=3000, ttl_ms=10_000)   # slow down: the loop brakes at some pass
+    for _ in range(50):
+        reports = len(bench.sent)
+        bench.step(v_mmps=int(unit.v_mmps))
+        if bench.motor.mode == "brake" and len(bench.sent) == reports:   # a pass between reports
+            break
+    assert bench.motor.mode == "brake"
+    bench.command(v_mmps=500, eoa_mm=3000, ttl_ms=10_000)
+    reports = len(bench.sent)
+    while len(bench.sent) == reports:   # the next report, driven by then
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+    report = bench.last_report()
+    assert report["mode"] == "run" and report["duty"] > 0 and "undriven" in report["flt"]
+    for _ in range(10):
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+    assert "undriven" not in bench.last_report()["flt"], "named for the interval it braked in only"
+
+
 def test_a_stop_target_beyond_the_end_of_authority_stops_at_the_end_of_authority():
     bench = Bench()
     unit = bench.unit

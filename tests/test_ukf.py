@@ -552,14 +552,15 @@ def test_a_speed_step_no_train_can_make_reopens_the_wheel_scale(loop):
     assert seen[1][1] > 1.5 * seen[0][1], seen
 
 
-@pytest.mark.parametrize("duty,mode,steps", [(70, "run", 1), (0, "stop", 0)])
-def test_a_driven_train_that_slows_faster_than_its_motor_drags_it_slides(loop, duty, mode, steps):
+@pytest.mark.parametrize("duty,mode,flt,steps", [(70, "run", [], 1), (0, "stop", [], 0), (70, "run", ["undriven"], 0)])
+def test_a_driven_train_that_slows_faster_than_its_motor_drags_it_slides(loop, duty, mode, flt, steps):
     """The wheel starts to read 0.85 of the travel at 0.5 m/s: the speed falls 85 mm/s between two reports. Driven at
-    70 % (the motor pulls it on, friction slows it 0.08 m/s^2) that is a slide; braking (1.4 m/s^2) it could be true."""
+    70 % (the motor pulls it on, friction slows it 0.08 m/s^2) that is a slide; braking (1.4 m/s^2) it could be true,
+    also when the board drives at both reports but braked at a pass in between (it names `undriven`)."""
     profile = TrainProfile()
     est = UkfEstimator(loop, profile)
     slid = _cruise_reports(loop.tags[2], lambda k: 0.85 if k >= 40 else 1.02)
-    reports = [dict(r, duty=duty, mode=mode) for r in slid]
+    reports = [dict(r, duty=duty, mode=mode, flt=flt if k >= 40 else []) for k, r in enumerate(slid)]
     feed(est, reports[:45])
     assert est.counters()["speed_steps"] == steps
 

@@ -315,7 +315,10 @@ class UkfEstimator:
                     rolled_m, run_m = excess_m, 0.0
                     self._rolled_m += excess_m
                     v_mps = min(v_mps, self._top_mps)
-        duty_pct = report.get("duty", 0) if report.get("mode") == "run" else 0
+        # the duty the train was driven at throughout the interval: none when the board braked or drove at zero duty
+        # at some pass since its last report (`undriven`), whatever it drives at now
+        driven = report.get("mode") == "run" and "undriven" not in report.get("flt", ())
+        duty_pct = report.get("duty", 0) if driven else 0
         step = self._speed_step(t_s, v_mps, duty_pct) if not rolled_m else None
         if rolled_m or step is not None:
             self._envelope.reset()
