@@ -67,4 +67,4 @@ def test_a_train_alone_laps_within_3_percent_of_its_minimum_and_stops_on_the_mar
     assert 1.0 < alone["lap_over_minimum"] <= 1.03, alone
     line = alone["line_speed_mps"]
     assert 0.99 * line <= alone["top_speed_mps"] <= 1.002 * line, alone
-    assert alone["stop_error_max_mm"] <= 10.0, alone
+    assert alone["stop_error_max_mm"] <= 10.0 and alone["stops_with_creep"] == 0, alone

@@ -151,7 +151,8 @@ def run(args):
         print(f"train {base.trains[0].train_id} alone, {a['dwell_s']:g} s at every station: lap {a['lap_s']} s, "
               f"the minimum for its profile {a['minimum_lap_s']} s ({a['lap_over_minimum']}x); top speed "
               f"{a['top_speed_mps']} m/s (line {a['line_speed_mps']}); stops {a['stop_error_mean_mm']} mm from the "
-              f"mark on average, {a['stop_error_max_mm']} mm at most")
+              f"mark on average, {a['stop_error_max_mm']} mm at most; {a['stops_with_creep']} times it stood short "
+              f"of a stop and moved on to it")
     print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed; floor: "
           "the ratio with a perfect speed loop and estimates (only the leader's travel since its data, k sigma and "
           "the stop window left); where the overhead goes, in cm, measured against truth")

@@ -255,10 +255,10 @@ def minimum_leg_s(distance_m: float, profile) -> float:
     return peak / a + peak / b
 
 
-def _stop_errors_mm(layout, t, v, head_s, stand_s=1.0, near_m=0.1):
-    """Where the train stood still for `stand_s` or more within `near_m` of a station: how far its head was past
-    the station's mark (mm; negative: short of it), one value a stop."""
-    errors, k, n = [], 0, len(t)
+def _stands_near_stations(layout, t, v, head_s, near_m=0.1):
+    """Every standstill within `near_m` of a station: (how long it stood (s), how far its head was past the
+    station's mark (mm; negative: short of it))."""
+    stands, k, n = [], 0, len(t)
     while k < n:
         if v[k] > 0.0:
             k += 1
@@ -266,20 +266,19 @@ def _stop_errors_mm(layout, t, v, head_s, stand_s=1.0, near_m=0.1):
         end = k
         while end < n and v[end] <= 0.0:
             end += 1
-        if t[end - 1] - t[k] >= stand_s:
-            past = [layout.wrap(head_s[k] - st.s_m + layout.length_m / 2) - layout.length_m / 2
-                    for st in layout.stations]
-            nearest = min(past, key=abs)
-            if abs(nearest) <= near_m:
-                errors.append(1000.0 * nearest)
+        past = [layout.wrap(head_s[k] - st.s_m + layout.length_m / 2) - layout.length_m / 2 for st in layout.stations]
+        nearest = min(past, key=abs)
+        if abs(nearest) <= near_m:
+            stands.append((t[end - 1] - t[k], 1000.0 * nearest))
         k = end
-    return errors
+    return stands
 
 
 def lone_lap(layout, profile=None, dwell_s=2.0, seed=0, laps=4):
     """One train alone on a loop, stopping `dwell_s` at every station: its lap time (laps after the first, which
     starts from the start position) against the minimum-time lap for its profile (`minimum_leg_s` between
-    consecutive stations plus the dwells), its top speed against line speed, and how far from the mark it stops."""
+    consecutive stations plus the dwells), its top speed against line speed, how far from the mark it stops, and how
+    often it stood short of a stop and moved on to it (crept)."""
     if not layout.closed or not layout.stations:
         raise ConfigError(f"layout {layout.name}: the lone lap needs a loop with stations")
     profile = profile or TrainProfile()
@@ -298,7 +297,8 @@ def lone_lap(layout, profile=None, dwell_s=2.0, seed=0, laps=4):
     times = recorder.lap_times(0)[1:]
     t = np.asarray(recorder.t_s)
     v = np.asarray(recorder.v_mps[0])
-    errors_mm = _stop_errors_mm(layout, t, v, np.asarray(recorder.head_s_m[0]))
+    stands = _stands_near_stations(layout, t, v, np.asarray(recorder.head_s_m[0]))
+    errors_mm = [past_mm for stood_s, past_mm in stands if stood_s >= 1.0]   # the stops: stood through a dwell
     lap_s = float(np.mean(times)) if times else None
     summary = recorder.summary()
     return {
@@ -310,5 +310,7 @@ def lone_lap(layout, profile=None, dwell_s=2.0, seed=0, laps=4):
         "station_stops": summary["trains"][0]["station_stops"],
         "stop_error_mean_mm": round(float(np.mean(np.abs(errors_mm))), 1) if errors_mm else None,
         "stop_error_max_mm": round(float(np.max(np.abs(errors_mm))), 1) if errors_mm else None,
+        # a train that stood still near a station and moved on before its dwell: it crept up to the mark
+        "stops_with_creep": sum(1 for stood_s, _ in stands if stood_s < 1.0),
         "collisions": summary["collisions"], "authority_overruns": summary["authority_overruns"],
     }
