@@ -565,6 +565,18 @@ def test_a_driven_train_that_slows_faster_than_its_motor_drags_it_slides(loop, d
     assert est.counters()["speed_steps"] == steps
 
 
+def test_a_slide_that_begins_between_two_reports_is_caught_over_both(loop):
+    """The wheel starts to slide as a report is made: the speed measure shows the fall half in one interval and half
+    in the next (510 -> 470 -> 435 mm/s), each under the tolerance beyond what the motor's drag allows. Over the
+    two intervals together it is a slide; a wheel that keeps its scale shows none."""
+    profile = TrainProfile()
+    for scales, steps in (((0.94, 0.87), 1), ((1.02, 1.02), 0)):
+        est = UkfEstimator(loop, profile)
+        reports = _cruise_reports(loop.tags[2], lambda k, scales=scales: 1.02 if k < 40 else scales[k > 40])
+        feed(est, reports[:43])
+        assert est.counters()["speed_steps"] == steps, scales
+
+
 def test_a_roll_reported_while_braking_from_speed_leaves_the_scale_alone(loop):
     """The board flags as a roll every count while braked, also braking from 0.5 m/s; the filter's odometer then
     stands while its speed did not. With the scale open (after a speed step) that pulled the scale to -1: the train

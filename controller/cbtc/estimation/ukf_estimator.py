@@ -189,6 +189,7 @@ class UkfEstimator:
         self._roll_run_m = 0.0       # ... of the current roll, report after report
         self._board_v_mps = None     # the newest report's speed
         self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
+        self._board_before = None    # (t_s, v_mps, duty_pct) of the report before it, while no step lies between
         self._envelope = SpeedEnvelope(profile, self.params.motor_tol, self.params.step_window_s)
         self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
 
@@ -324,6 +325,8 @@ class UkfEstimator:
             self._envelope.reset()
         else:
             step = self._drifted(t_s, v_mps, duty_pct if "mode" in report else None)
+        self._board_before = None if rolled_m or step is not None or self._board_t_s is None else (
+            self._board_t_s, self._board_v_mps, self._board_duty_pct)
         self._board_odo_m, self._board_t_s, self._board_v_mps = odo_m, t_s, v_mps
         self._board_duty_pct = duty_pct
         if self._first_odo_m is None:
@@ -348,18 +351,27 @@ class UkfEstimator:
         self._insert(new)
 
     def _speed_step(self, t_s, v_mps, duty_pct):
-        """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report changed by more than
-        traction or the brake can change a train's speed (plus `step_tol_mps`): the wheel began or stopped slipping
-        or spinning, so the encoder's scale is unknown again. A train driven at both reports (mode run, duty > 0)
-        slows no faster than its motor's drag at the lower duty and friction allow. None when it did not, or either
-        speed is low."""
-        v0_mps = self._board_v_mps
-        if v0_mps is None or min(v0_mps, v_mps) < _MOVING_MPS or t_s <= self._board_t_s:
+        """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report, or since the one
+        before it, changed by more than traction or the brake can change a train's speed (plus `step_tol_mps`): the
+        wheel began or stopped slipping or spinning, so the encoder's scale is unknown again. A step that begins
+        between two reports shows half in each (and the speed loop makes up part of it), so the two intervals are
+        judged together too. None when it did not, or either speed is low."""
+        found = self._step_over(self._board_t_s, self._board_v_mps, self._board_duty_pct, t_s, v_mps, duty_pct)
+        if found is None and self._board_before is not None:
+            t0_s, v0_mps, d0_pct = self._board_before
+            found = self._step_over(t0_s, v0_mps, min(d0_pct, self._board_duty_pct), t_s, v_mps, duty_pct)
+        return found
+
+    def _step_over(self, t0_s, v0_mps, d0_pct, t_s, v_mps, duty_pct):
+        """The step from speed `v0_mps` at `t0_s` to `v_mps` at `t_s` (None: none): a train driven throughout (mode
+        run, duty > 0 at both ends, no `undriven` pass between) slows no faster than its motor's drag at the lower
+        duty and friction allow; otherwise as fast as the emergency brake."""
+        if v0_mps is None or min(v0_mps, v_mps) < _MOVING_MPS or t_s <= t0_s:
             return None
-        dt_s = t_s - self._board_t_s
+        dt_s = t_s - t0_s
         p = self.profile
         fall_mps2 = p.beta_e_mps2
-        driven_pct = min(duty_pct, self._board_duty_pct)
+        driven_pct = min(duty_pct, d0_pct)
         if driven_pct > 0:
             drag_mps2 = max(0.0, (v0_mps - driven_pct / 100.0 * p.v_noload_mps) / p.motor_tau_s)
             fall_mps2 = min(fall_mps2, drag_mps2 + p.friction_mps2)
