@@ -173,6 +173,31 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
     assert period_ms(1, 25.0, 30.0) == pytest.approx(50, abs=1), "nobody follows B"
 
 
+def test_a_dwell_ends_within_a_fast_report_of_its_time():
+    """Near the end of a dwell the controller asks the train for fast reports, so the dwell ends within 20 ms of its
+    time, not up to a whole 50 ms report period later (and the train leaves that much sooner at every stop)."""
+    from cbtc.railway.train_profile import TrainProfile
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import ScenarioConfig, TrainSpec
+
+    layout = load_layout("itb_square")
+    sim = Simulation(ScenarioConfig(layout=layout, seed=2, duration_s=70.0, dwell_s=(2.0, 2.0),
+                                    trains=[TrainSpec("A", 0.0, tuple(st.name for st in layout.stations),
+                                                      TrainProfile())]))
+    zc, late_s = sim.zc, []
+    station_stop = zc._station_stop
+
+    def timed(state, now_s):
+        due_s = state.dwell_until_s
+        stop_m = station_stop(state, now_s)
+        if due_s is not None and state.dwell_until_s is None:
+            late_s.append(now_s - due_s)
+        return stop_m
+    zc._station_stop = timed
+    sim.run()
+    assert len(late_s) >= 6 and 0.0 <= min(late_s) and max(late_s) <= 0.025, late_s
+
+
 def test_fast_reports_stay_within_the_controllers_report_budget_most_urgent_first():
     """Four trains close behind each other on a small loop, every one held by the one ahead; a controller sized for
     4 x 20 + 30 reports a second has one fast slot: exactly one train reports at 20 ms at a time, the one whose

@@ -30,6 +30,7 @@ CLOSE_TOLERANCE_M = 0.005
 CLOSE_TOLERANCE_DEG = 0.5
 BLOCK_JOIN_TOLERANCE_M = 0.001   # block ends closer than this to the next start are joined exactly
 DEFAULT_WINDOW_M = 0.03
+MIN_WINDOW_M = 0.01   # a board holds a train that braked onto its mark up to 3 mm short, and the estimate errs too
 
 TOP_KEYS = ("name", "closed", "start", "segments", "stations", "tags", "blocks", "ips")
 
@@ -194,7 +195,11 @@ def _stations(r, items, length, closed):
             r.fail(f"{where}.name", f"duplicate station name {name!r}: names must be unique")
         seen.add(name)
         s_m = _on_track(r, r.number(item, "s_m", where), f"{where}.s_m", length, closed)
-        stations.append(Station(name, s_m, r.number(item, "window_m", where, positive=True, default=DEFAULT_WINDOW_M)))
+        window_m = r.number(item, "window_m", where, positive=True, default=DEFAULT_WINDOW_M)
+        if window_m < MIN_WINDOW_M:
+            r.fail(f"{where}.window_m", f"{window_m} m is finer than a train stops (a board holds a train braked onto "
+                   f"its mark up to 3 mm short): give at least {MIN_WINDOW_M}")
+        stations.append(Station(name, s_m, window_m))
     return stations
 
 

@@ -39,6 +39,8 @@ DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this 
 _SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true metre a wheel can have: the band
 _SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
 _NO_MORE_STOPS = ""   # next_stop of a train past the last of its stops on a line
+_DWELL_FAST_S = 2 * obu.DEFAULTS["report_ms"] / 1000.0   # before a dwell ends, fast reports for this long (s)
+_STOP_KEPT_MM = 3       # near standstill, a station's stop target moves only when the estimate shifts it further
 _STANDING_MMPS = 30   # slower than this, braked or not counting: standing, for the dwell (the board's creep speed)
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
@@ -669,13 +671,21 @@ class ZoneController:
         stop_mm = eoa_mm if stop_m is None else \
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
                 _SCALE_LOW, state.odometer_per_m_low(0.0))) * 1000.0)))
+        held = state.cmd_fields
+        if (stop_m is not None and held is not None and held[0] == report["boot"] and held[8] < held[4]
+                and abs(stop_mm - held[8]) <= _STOP_KEPT_MM and held[8] <= eoa_mm
+                and report["v_mmps"] < 2 * _STANDING_MMPS):
+            # braking onto the mark: a target a mm or two off the one the board holds is the estimate's noise, and
+            # moving it would start a train the board has just stopped there (it holds within 3 mm of it)
+            stop_mm = held[8]
         est = state.newest_estimate()
         if est is None:
             state.limit_s = None
         else:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
-        rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) else 0
+        rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) or self._leaving_soon(state, now_s) \
+            else 0
         fields = (report["boot"], self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm,
                   int(self.params.ttl_s * 1000), max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm,
                   rpt_ms, max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))  # floored
@@ -709,6 +719,12 @@ class ZoneController:
                 return True
         # its place among them, least authority left first (ties by id)
         return bisect.bisect_left(self._fast_ranked, (state.fast_need_m, state.train_id)) < self.fast_slots
+
+    @staticmethod
+    def _leaving_soon(state, now_s):
+        """True in the last two report periods of `state`'s dwell: its reports come fast then, so the dwell ends (at
+        the first report on or after its time) within a fast report period, not up to a whole one of the board's."""
+        return state.dwell_until_s is not None and state.dwell_until_s - now_s <= _DWELL_FAST_S
 
     def _want_fast(self, state, need_m, now_s):
         """`state`'s follower is held by it with `need_m` of authority left: ask it for fast reports for a while."""
