@@ -216,7 +216,9 @@ class OnboardUnit:
         dt_s = wire.wrap_diff(now_ms, self._last_step_ms) / 1000.0
         self._last_step_ms = now_ms
         self._sample(now_ms)
-        self._control(now_ms, dt_s)
+        # after a stall (a WiFi reconnect, a long collection) the loop did not act in between: its reference ramp,
+        # integral and encoder checks take at most 0.1 s of it, or a ramp run on alone trips the drive-ceiling check
+        self._control(now_ms, dt_s if dt_s < 0.1 else 0.1)
         # a report is due a period after the previous one's slot, the period being the valid command's `rpt_ms` (the
         # controller asks for faster reports while a train behind follows this one closely) or the board's own: it
         # is chosen at every pass, so a command that expires or changes it takes effect at once. Slots keep the

@@ -58,9 +58,10 @@ class FailingEncoder:
         return self._count
 
 
-def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0):
+def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=()):
     """The unit drives a TrainProfile train from rest under one valid command (600 mm/s, eoa_mm, 10 s) and its encoder
-    fails at `fail_at_mm`; returns (unit, true position mm, true speed, the largest true position, the reports)."""
+    fails at `fail_at_mm`; its loop stands still over each (from_ms, to_ms) of `stalls` while the train runs on at the
+    duty it was left with. Returns (unit, true position mm, true speed, the largest true position, the reports)."""
     profile = TrainProfile()
     encoder = FailingEncoder(way, fail_at_mm)
     motor = FakeMotor()
@@ -78,7 +79,8 @@ def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0):
         s_before = s_m
         s_m, v_mps, _a = physics.step(s_m, v_mps, motor.duty_pct, motor.mode, PASS_MS / 1000, profile)
         encoder.move((s_m - s_before) * 1000, PASS_MS, v_mps * 1000)
-        unit.step(now_ms)
+        if not any(start_ms <= now_ms < end_ms for start_ms, end_ms in stalls):
+            unit.step(now_ms)
         furthest_mm = max(furthest_mm, s_m * 1000)
     reports = [wire.decode_report(KEY, wire.topic_report("A"), p) for p in sent]
     return unit, s_m * 1000, v_mps, furthest_mm, encoder, reports
@@ -103,6 +105,19 @@ def test_an_encoder_failing_at_line_speed_trips_the_train_short_of_its_end_of_au
     assert tripped and tripped[0]["mode"] == "trip"
     assert reports[-1]["mode"] in ("stop", "trip") and reports[-1]["duty"] == 0
     assert unit.last_sensor_error.startswith("encoder: ")
+
+
+@pytest.mark.parametrize("stall_ms", [300, 700, 1200])
+def test_a_loop_that_stalls_does_not_take_its_healthy_encoder_for_failed(stall_ms):
+    """A board's loop can stand still for a while (a WiFi reconnect, a long collection) while the motor keeps its
+    duty: the pass after it integrates at most 0.1 s, so the reference does not run ahead of the train and trip the
+    drive-ceiling or no-count checks (a 0.4-1.2 s stall tripped them); an encoder that freezes is still caught."""
+    stalls = ((500, 500 + stall_ms), (2000, 2000 + stall_ms // 2))
+    unit, s_mm, v, furthest, _, reports = drive("none", fail_at_mm=1e9, stalls=stalls)
+    assert unit.enc_fails == 0 and not any("enc_fail" in r["flt"] for r in reports), unit.last_sensor_error
+    assert v == 0 and furthest <= 2000
+    unit, s_mm, v, furthest, _, reports = drive("freeze", fail_at_mm=900, stalls=stalls)
+    assert unit.enc_fails >= 1 and v == 0 and furthest < 2000
 
 
 def test_a_count_that_goes_back_trips_a_one_channel_board_and_commands_on_older_reports_are_refused():
