@@ -54,7 +54,7 @@ _SPEED_RING = const(8)   # encoder snapshots kept for the speed estimate
 _US_WRAP = const(262144000)   # edge times (us) wrap with the board's ms at 2^18: small ints; spans are < 1 s
 _LEFT_SIDS = const(4)    # sessions remembered as left: a replayed command of any of them is refused
 _CREEP_MMPS = const(30)  # below this the service curve is zero: the train stops and holds (mm/s)
-_STOP_MADE_MM = const(3)  # braked this near a station's mark, the stop is made: held there, not driven up to it (mm)
+STOP_MADE_MM = const(3)  # braked this near a station's mark, the stop is made: held there, not driven up to it (mm)
 _ENC_COUNTS = const(3)   # counts the train surely travelled without one coming: the encoder has failed
 _ADHESION_MMPS2 = const(3000)  # no train stops faster than this (wheel adhesion): counts must keep coming (mm/s^2)
 _ENC_HOLD_MS = const(2000)     # a failed encoder holds the train braked this long after its last sign (ms)
@@ -219,6 +219,8 @@ class OnboardUnit:
         # after a stall (a WiFi reconnect, a long collection) the loop did not act in between: its reference ramp,
         # integral and encoder checks take at most 0.1 s of it, or a ramp run on alone trips the drive-ceiling check
         self._control(now_ms, dt_s if dt_s < 0.1 else 0.1)
+        if self.duty_pct == 0:   # braked or not driven at this pass: the next report says so if it drives by then
+            self._undriven = True
         # a report is due a period after the previous one's slot, the period being the valid command's `rpt_ms` (the
         # controller asks for faster reports while a train behind follows this one closely) or the board's own: it
         # is chosen at every pass, so a command that expires or changes it takes effect at once. Slots keep the
@@ -358,7 +360,7 @@ class OnboardUnit:
         cmd = self.cmd
         if cmd is not None and cmd["stop_mm"] < end_mm:   # the stop target of the newest command (a station)
             end_mm = cmd["stop_mm"]
-            if self.duty_pct == 0 and end_mm - self.odo_mm <= _STOP_MADE_MM:
+            if self.duty_pct == 0 and end_mm - self.odo_mm <= STOP_MADE_MM:
                 return 0.0   # braking (or braked) onto the mark: stop here rather than drive the last mm again
         dist_mm = end_mm - self.odo_mm
         if dist_mm <= 0:
@@ -477,12 +479,9 @@ class OnboardUnit:
             # the motor's own drag at zero duty (v / tau: weak at low speed) is less braking than the curve asks:
             # short the windings for this pass (brake: it cannot reverse the train, as a negative duty could)
             self.duty_pct = 0
-            self._undriven = True
             self.motor.brake()
             return
         duty_pct = int(max(0.0, min(100.0, duty)))
-        if duty_pct == 0:
-            self._undriven = True
         if duty_pct > 30 >= self.duty_pct:   # the stall clock runs from when the drive is applied, not from standstill
             self._last_move_ms = now_ms
         self.duty_pct = duty_pct
@@ -494,7 +493,6 @@ class OnboardUnit:
         self._integral = 0.0
         self._a_lp = 0.0
         self.duty_pct = 0
-        self._undriven = True
         self.motor.brake()
 
     # --- reporting ----------------------------------------------------------------------------------------------

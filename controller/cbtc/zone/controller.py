@@ -40,7 +40,8 @@ _SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true me
 _SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
 _NO_MORE_STOPS = ""   # next_stop of a train past the last of its stops on a line
 _DWELL_FAST_S = 2 * obu.DEFAULTS["report_ms"] / 1000.0   # before a dwell ends, fast reports for this long (s)
-_STOP_KEPT_MM = 3       # near standstill, a station's stop target moves only when the estimate shifts it further
+_STOP_KEPT_MM = obu.STOP_MADE_MM   # near standstill, a station's stop target moves only when the estimate shifts
+#                                   it further than the board holds short of it
 _STANDING_MMPS = 30   # slower than this, braked or not counting: standing, for the dwell (the board's creep speed)
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
@@ -671,13 +672,13 @@ class ZoneController:
         stop_mm = eoa_mm if stop_m is None else \
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
                 _SCALE_LOW, state.odometer_per_m_low(0.0))) * 1000.0)))
-        held = state.cmd_fields
-        if (stop_m is not None and held is not None and held[0] == report["boot"] and held[8] < held[4]
-                and abs(stop_mm - held[8]) <= _STOP_KEPT_MM and held[8] <= eoa_mm
-                and report["v_mmps"] < 2 * _STANDING_MMPS):
-            # braking onto the mark: a target a mm or two off the one the board holds is the estimate's noise, and
-            # moving it would start a train the board has just stopped there (it holds within 3 mm of it)
-            stop_mm = held[8]
+        if stop_m is not None and state.cmd_fields is not None and report["v_mmps"] < 2 * _STANDING_MMPS:
+            held_boot, _sid, _rseq, _v, held_eoa_mm, _ttl, _acc, _dec, held_stop_mm = state.cmd_fields[:9]
+            if (held_boot == report["boot"] and held_stop_mm < held_eoa_mm and held_stop_mm <= eoa_mm
+                    and abs(stop_mm - held_stop_mm) <= _STOP_KEPT_MM):
+                # braking onto the mark: a target a mm or two off the one the board holds is the estimate's noise,
+                # and moving it would start a train the board has just stopped there (it holds that near it)
+                stop_mm = held_stop_mm
         est = state.newest_estimate()
         if est is None:
             state.limit_s = None
