@@ -459,7 +459,6 @@ class OnboardUnit:
         # drive_margin_pct above the feed-forward: whatever the encoder reads, the motor is never driven much harder
         # than the reference needs. A train held at that ceiling and still slower than the reference for _SAT_MS is
         # not where its encoder says: the encoder reads short
-        self._ref_mm += self.v_ref_mmps * dt_s
         ff = (self.v_ref_mmps + a_ref * cfg["motor_tau_ms"] / 1000.0) * 100.0 / cfg["v_noload_mmps"]
         duty = ff + cfg["kp"] * error + cfg["ki"] * self._integral
         if duty > ff + cfg["drive_margin_pct"]:
@@ -482,6 +481,8 @@ class OnboardUnit:
             self.motor.brake()
             return
         duty_pct = int(max(0.0, min(100.0, duty)))
+        if duty_pct > 0:   # the travel asked counts only while the motor drives: a braked train stops short of it
+            self._ref_mm += self.v_ref_mmps * dt_s
         if duty_pct > 30 >= self.duty_pct:   # the stall clock runs from when the drive is applied, not from standstill
             self._last_move_ms = now_ms
         self.duty_pct = duty_pct

@@ -58,10 +58,11 @@ class FailingEncoder:
         return self._count
 
 
-def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=()):
+def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=(), later=()):
     """The unit drives a TrainProfile train from rest under one valid command (600 mm/s, eoa_mm, 10 s) and its encoder
     fails at `fail_at_mm`; its loop stands still over each (from_ms, to_ms) of `stalls` while the train runs on at the
-    duty it was left with. Returns (unit, true position mm, true speed, the largest true position, the reports)."""
+    duty it was left with; each (at_ms, v_mmps, ahead_mm) of `later` is a new command then, at most `v_mmps`, its end
+    of authority `ahead_mm` beyond the odometer. Returns (unit, true position mm, true speed, the largest true position, the reports)."""
     profile = TrainProfile()
     encoder = FailingEncoder(way, fail_at_mm)
     motor = FakeMotor()
@@ -81,6 +82,11 @@ def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=()
         encoder.move((s_m - s_before) * 1000, PASS_MS, v_mps * 1000)
         if not any(start_ms <= now_ms < end_ms for start_ms, end_ms in stalls):
             unit.step(now_ms)
+        for k, (at_ms, v_cap_mmps, ahead_mm) in enumerate(later):
+            if at_ms == now_ms:
+                report = wire.decode_report(KEY, wire.topic_report("A"), sent[-1])
+                unit.on_message(wire.topic_command("A"), wire.encode_command(
+                    KEY, "A", 9, 2 + k, 1, report["seq"], v_cap_mmps, unit.odo_mm + ahead_mm, 10000, 600, 800), now_ms)
         furthest_mm = max(furthest_mm, s_m * 1000)
     reports = [wire.decode_report(KEY, wire.topic_report("A"), p) for p in sent]
     return unit, s_m * 1000, v_mps, furthest_mm, encoder, reports
@@ -206,3 +212,16 @@ def test_the_zone_gives_a_train_with_a_failed_encoder_no_authority_until_it_is_l
     assert located_at > 12.5, "healthy only after the board's 2 s hold"
     assert min(v for t, _, _, v in held if t < located_at) == 0.0, "the follower was held meanwhile"
     assert leader.travelled_m > 0 and leader.v_mps > 0.2, "the leader runs again once located"
+
+
+@pytest.mark.parametrize("ahead_mm", [0, -2, -20])
+def test_a_train_braked_to_a_stop_is_not_taken_for_a_failed_encoder_when_its_authority_steps_back(ahead_mm):
+    """Asked to stop from line speed, the speed loop brakes the train harder than the reference slows, so the train
+    stands before the reference does; the travel the reference asks meanwhile is not driven. A command whose end of
+    authority then lies at or behind the train (its estimate moved) leaves no slack: that travel counted as driven
+    tripped the no-count check of a healthy encoder (3 of 50 trains in a packed queue, 30 s)."""
+    # stopping from 0.6 m/s at 1.5 s, the train stands from 2.18 s, the reference from 2.26 s
+    unit, s_mm, v, furthest, _, reports = drive("none", fail_at_mm=1e9, seconds=3.0,
+                                                later=[(1500, 0, 1000), (2200, 0, ahead_mm)])
+    assert unit.enc_fails == 0 and not any("enc_fail" in r["flt"] for r in reports), unit.last_sensor_error
+    assert v == 0
