@@ -62,7 +62,8 @@ def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=()
     """The unit drives a TrainProfile train from rest under one valid command (600 mm/s, eoa_mm, 10 s) and its encoder
     fails at `fail_at_mm`; its loop stands still over each (from_ms, to_ms) of `stalls` while the train runs on at the
     duty it was left with; each (at_ms, v_mmps, ahead_mm) of `later` is a new command then, at most `v_mmps`, its end
-    of authority `ahead_mm` beyond the odometer. Returns (unit, true position mm, true speed, the largest true position, the reports)."""
+    of authority `ahead_mm` beyond the odometer. Returns (unit, true position mm, true speed, the largest true
+    position, the reports)."""
     profile = TrainProfile()
     encoder = FailingEncoder(way, fail_at_mm)
     motor = FakeMotor()

@@ -14,6 +14,7 @@ from scipy.stats import chi2
 
 from cbtc.cli import main
 from cbtc.errors import ConfigError
+from cbtc.estimation import ukf_estimator
 from cbtc.estimation.estimate import BoardClock
 from cbtc.estimation.track_ukf import (
     NoiseModel,
@@ -23,6 +24,7 @@ from cbtc.estimation.track_ukf import (
     process_noise,
 )
 from cbtc.estimation.ukf_estimator import UkfEstimator
+from cbtc.firmware import obu
 from cbtc.layout_files import load_layout
 from cbtc.railway import balise
 from cbtc.railway.ips_frame import track_to_ips
@@ -592,6 +594,37 @@ def test_a_roll_reported_while_braking_from_speed_leaves_the_scale_alone(loop):
     est = UkfEstimator(loop, profile)
     feed(est, reports)
     assert est.counters()["speed_steps"] == 1 and abs(est.scale_error - 0.02) < 0.05, est.scale_error
+
+
+def test_counts_flagged_roll_that_a_train_braking_from_speed_surely_made_forward_are_travel(loop):
+    """The board flags every count while braked as a roll, also a tripped train's braking from 0.5 m/s. From that
+    speed no train stops (and so turns back) within about 2 cm, braking at the adhesion limit: counts within that are
+    travel, and the position neither stands nor widens. Counts beyond it, or after a standstill, still widen it."""
+    profile = TrainProfile()
+    cruise = _cruise_reports(loop.tags[2], lambda k: 1.0)[:40]
+    last = cruise[-1]
+
+    def then(*steps):
+        est = UkfEstimator(loop, profile)
+        reports = list(cruise)
+        for k, (odo_mm, v_mmps) in enumerate(steps, 1):
+            reports.append(dict(last, seq=last["seq"] + k, t_ms=last["t_ms"] + 40 * k, odo_mm=last["odo_mm"] + odo_mm,
+                                v_mmps=v_mmps, flt=["roll"], duty=0, mode="trip"))
+        feed(est, reports)
+        return est.estimate(controller_s(reports[-1]["t_ms"]))
+
+    before = then()
+    braking = then((12, 300))             # 12 mm braking from 0.5 m/s: forward
+    beyond = then((12, 300), (30, 200))   # 30 mm more from 0.3 m/s: more than it surely went (6 mm)
+    standing = then((12, 300), (0, 0), (4, 20))   # a count after it stood: a roll
+    assert braking.s_m - before.s_m == pytest.approx(0.012, abs=0.003)
+    assert braking.sigma_s_m < before.sigma_s_m + 0.002
+    assert beyond.s_m - braking.s_m < 0.015 and beyond.sigma_s_m > braking.sigma_s_m + 0.002
+    assert standing.sigma_s_m > braking.sigma_s_m
+
+
+def test_the_zone_bounds_braking_by_the_boards_adhesion_limit():
+    assert ukf_estimator._ADHESION_MPS2 * 1000 == obu._ADHESION_MMPS2
 
 
 def test_a_train_located_after_an_encoder_fault_starts_with_its_scale_open(loop):

@@ -30,6 +30,7 @@ from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.estimation.speed_envelope import SpeedEnvelope
 from cbtc.estimation.track_ukf import (
+    K_HIGH,
     K_LOW,
     D,
     K,
@@ -104,6 +105,10 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
 
 
 _WHEEL_LOWEST = 1.0 + K_LOW   # odometer m per true m: the least a wheel reads (and a command may state)
+_WHEEL_HIGHEST = 1.0 + K_HIGH  # ... and the most
+_ADHESION_MPS2 = 3.0   # no train stops faster than this (wheel adhesion; the board's _ADHESION_MMPS2)
+_SCALE_K_SIGMA = 3.0   # the scale's bounds there, in its sigmas
+_SPEED_LAG_S = 0.03    # a board's measured speed lags the train's at most this: half its window and a count or two
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
 _KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
 _ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
@@ -300,8 +305,9 @@ class UkfEstimator:
         # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
         rolled_m, run_m = 0.0, self._roll_run_m
-        if "roll" in report.get("flt", ()) and self._board_odo_m is not None:
-            rolled_m = max(0.0, odo_m - self._board_odo_m)
+        if "roll" in report.get("flt", ()) and self._board_odo_m is not None and \
+                odo_m - self._board_odo_m > self._surely_forward_m():
+            rolled_m = odo_m - self._board_odo_m - self._surely_forward_m()
             self._rolled_m += rolled_m
             self._roll_run_m += rolled_m
             v_mps = 0.0
@@ -349,6 +355,30 @@ class UkfEstimator:
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
             new.append(_Event(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
+
+    def _surely_forward_m(self) -> float:
+        """Odometer metres the train surely went on forward after the newest report, whatever it met since: from the
+        least true speed that report's speed allows (the wheel reading as long as it may, the speed lagging), braking
+        at the adhesion limit. A count flagged `roll` within them was no roll: a train cannot turn back before it
+        stops."""
+        if not self._board_v_mps:
+            return 0.0
+        v_mps = self._board_v_mps / self._odometer_per_m_high() - _ADHESION_MPS2 * _SPEED_LAG_S
+        low = self.odometer_per_m_low(_SCALE_K_SIGMA)
+        if not (v_mps > 0.0 and math.isfinite(low)):
+            return 0.0
+        return max(low, _WHEEL_LOWEST) * v_mps * v_mps / (2.0 * _ADHESION_MPS2)
+
+    def _odometer_per_m_high(self) -> float:
+        """An upper bound of the encoder's odometer metres per true metre (_SCALE_K_SIGMA above the scale learnt;
+        the most a wheel reads while unlocated, or when the IPS or a balise puts the train behind its wheel)."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K or (state.disagree is not None and state.disagree[0] < 0.0) \
+                or (state.tag_offset is not None and state.tag_offset < 0.0):
+            return _WHEEL_HIGHEST
+        _t, x, P = state.snap
+        high = 1.0 + float(x[K]) + _SCALE_K_SIGMA * math.sqrt(max(P[K][K], 0.0))
+        return min(high, _WHEEL_HIGHEST) if math.isfinite(high) else _WHEEL_HIGHEST
 
     def _speed_step(self, t_s, v_mps, duty_pct):
         """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report, or since the one
