@@ -305,8 +305,8 @@ class UkfEstimator:
         # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
         rolled_m, run_m = 0.0, self._roll_run_m
-        if "roll" in report.get("flt", ()) and self._board_odo_m is not None and \
-                odo_m - self._board_odo_m > self._surely_forward_m():
+        if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps) \
+                and odo_m - self._board_odo_m > self._surely_forward_m():
             rolled_m = odo_m - self._board_odo_m - self._surely_forward_m()
             self._rolled_m += rolled_m
             self._roll_run_m += rolled_m
@@ -356,14 +356,23 @@ class UkfEstimator:
             new.append(_Event(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
 
+    def _least_speed_mps(self, v_mps: float) -> float:
+        """The least true speed a board's measured `v_mps` allows: the wheel reading as long as it may, the mean
+        lagging the train by _SPEED_LAG_S at the adhesion limit."""
+        return max(0.0, v_mps / self._odometer_per_m_high() - _ADHESION_MPS2 * _SPEED_LAG_S) if v_mps else 0.0
+
+    def _may_have_turned(self, t_s: float, v_mps: float) -> bool:
+        """False when the train, going forward at the newest report (driven, or taken as going on), cannot have
+        turned back by `t_s`, when the board measures `v_mps` (no sign): its speed cannot change by the two speeds'
+        sum faster than the adhesion limit allows."""
+        v0_mps = self._least_speed_mps(self._board_v_mps)
+        return v0_mps <= 0.0 or v0_mps + self._least_speed_mps(v_mps) <= _ADHESION_MPS2 * (t_s - self._board_t_s)
+
     def _surely_forward_m(self) -> float:
         """Odometer metres the train surely went on forward after the newest report, whatever it met since: from the
-        least true speed that report's speed allows (the wheel reading as long as it may, the speed lagging), braking
-        at the adhesion limit. A count flagged `roll` within them was no roll: a train cannot turn back before it
-        stops."""
-        if not self._board_v_mps:
-            return 0.0
-        v_mps = self._board_v_mps / self._odometer_per_m_high() - _ADHESION_MPS2 * _SPEED_LAG_S
+        least true speed that report's speed allows, braking at the adhesion limit. A count flagged `roll` within them
+        was no roll: a train cannot turn back before it stops."""
+        v_mps = self._least_speed_mps(self._board_v_mps)
         low = self.odometer_per_m_low(_SCALE_K_SIGMA)
         if not (v_mps > 0.0 and math.isfinite(low)):
             return 0.0
