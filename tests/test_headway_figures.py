@@ -53,6 +53,23 @@ def test_the_minimum_leg_accelerates_cruises_and_brakes_or_turns_at_its_peak():
     assert minimum_leg_s(0.12, p) == pytest.approx(peak / 0.5 + peak / 1.0)
 
 
+def test_the_least_headway_is_sumos_on_its_case_and_ours_keeps_it_for_one_profile_and_fixed_dwells():
+    """SUMO's moving block heads its trains 3.80 s apart on its case: the least the profile allows (2 s dwell, 1.3 s
+    for the leader to run its 0.3 m and the 0.1 m margin from standing, 0.5 s for the follower to brake from
+    0.5 m/s); `cbtc compare` prints it for scenarios of one profile and fixed dwells at every station."""
+    from cbtc.commands.compare import _least_headway
+    from cbtc.experiments.headway import least_headway_s
+    from cbtc.railway.train_profile import TrainProfile
+    from cbtc.scenario_files import load_scenario
+    from cbtc.zone.config import paper_scenario
+    sumo = TrainProfile(length_m=0.30, v_max_mps=0.5, accel_max_mps2=0.5, beta_s_mps2=1.0, beta_e_mps2=1.5)
+    assert least_headway_s(sumo, 0.10, 2.0) == pytest.approx(3.80)
+    # clearing within the ramp to line speed: sqrt(2 d / a)
+    assert least_headway_s(sumo.with_changes(length_m=0.05), 0.10, 2.0) == pytest.approx(2.0 + 0.6 ** 0.5 + 0.5)
+    assert _least_headway(load_scenario("sumo_case")) == pytest.approx(3.80)
+    assert _least_headway(paper_scenario(load_layout("itb_square"))) is None   # dwells drawn from 1-3 s
+
+
 @pytest.mark.parametrize("layout_name, profile", [
     ("itb_square", {}),
     ("sumo_square", {"v_max_mps": 0.5, "accel_max_mps2": 0.5, "beta_s_mps2": 1.0, "beta_e_mps2": 1.5}),

@@ -119,10 +119,11 @@ def run(args):
         by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
         sweep = block_sweep(layout, counts, base=base) if counts else []
     cuts = reductions(systems["moving_block"], systems["fixed_block"])
+    least_s = _least_headway(base)
     result = {"layout": layout.name, "seed": args.seed, "scenario": base.name, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
               "following_by_speed": by_speed,
-              "block_sweep": sweep, "reference": base.reference, "alone": alone}
+              "block_sweep": sweep, "reference": base.reference, "alone": alone, "least_headway_s": least_s}
     if args.plot:
         from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
         distance_time_png([recorders["fixed_block"], recorders["moving_block"]], args.plot,
@@ -146,6 +147,11 @@ def run(args):
         source = ref.pop("source")
         ours = systems[base.policy]
         print(f"{source}: " + ", ".join(f"{name} {value:g} (testbed {ours.get(name)})" for name, value in ref.items()))
+    if least_s is not None:
+        ours = systems[base.policy]["mean_headway_s"]
+        print(f"the least headway the trains' profile allows (exact positions, no reaction time, no k sigma): "
+              f"{least_s:.2f} s; {base.policy.replace('_', ' ')}: {ours} s"
+              + (f" ({ours / least_s:.3f}x)" if ours else ""))
     if alone is not None:
         a = alone
         print(f"train {base.trains[0].train_id} alone, {a['dwell_s']:g} s at every station: lap {a['lap_s']} s, "
@@ -163,3 +169,18 @@ def run(args):
     if args.plot:
         print(f"distance-time plot: {args.plot}")
     return 0
+
+
+def _least_headway(base):
+    """least_headway_s for a scenario of two or more trains of one profile on a loop with stations, each dwelling a
+    fixed time at every one of them; None otherwise."""
+    from cbtc.experiments.headway import least_headway_s
+    profiles = {spec.profile for spec in base.trains}
+    dwells = {spec.dwell_s or base.dwell_s for spec in base.trains}
+    if len(base.trains) < 2 or not base.layout.closed or not base.layout.stations or len(profiles) != 1 \
+            or len(dwells) != 1:
+        return None
+    (low_s, high_s), = dwells
+    if low_s != high_s or any(set(spec.stops) != {st.name for st in base.layout.stations} for spec in base.trains):
+        return None
+    return round(least_headway_s(profiles.pop(), base.params.margin_m, low_s), 3)

@@ -255,6 +255,19 @@ def minimum_leg_s(distance_m: float, profile) -> float:
     return peak / a + peak / b
 
 
+def least_headway_s(profile, margin_m: float, dwell_s: float) -> float:
+    """The least time headway (s) of identical trains that stop `dwell_s` at every station (stations far enough
+    apart for line speed), with exact positions and no reaction time: the leader departs, and its tail must be
+    `margin_m` past the mark before the follower, braking from line speed at its service rate, may aim at it. So
+    dwell + the time to run the train's length and the margin from standing + the time to brake from line speed;
+    the follower's way is the leader's, later by it, at every point."""
+    a, b, v = profile.accel_max_mps2, profile.beta_s_mps2, profile.v_max_mps
+    clear_m = profile.length_m + margin_m
+    ramp_m = v * v / (2 * a)
+    clear_s = math.sqrt(2.0 * clear_m / a) if clear_m <= ramp_m else v / a + (clear_m - ramp_m) / v
+    return dwell_s + clear_s + v / b
+
+
 def _stands_near_stations(layout, t, v, head_s, near_m=0.1):
     """Every standstill within `near_m` of a station: (how long it stood (s), how far its head was past the
     station's mark (mm; negative: short of it))."""
