@@ -302,7 +302,8 @@ class UkfEstimator:
         self._clock = board_clock
         t_s = board_clock.board_s(report["t_ms"])   # the board's time line, unwrapped
         # a step the board counted while braked to a standstill (`roll`) has no sign: it is taken out of the odometer
-        # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead
+        # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead;
+        # the part a train braking from speed surely made forward stays travel (_may_have_turned, _surely_forward_m)
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
         rolled_m, run_m = 0.0, self._roll_run_m
         if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps) \
