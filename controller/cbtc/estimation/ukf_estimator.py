@@ -306,9 +306,9 @@ class UkfEstimator:
         # the part a train braking from speed surely made forward stays travel (_may_have_turned, _surely_forward_m)
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
         rolled_m, run_m = 0.0, self._roll_run_m
-        if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps) \
-                and odo_m - self._board_odo_m > self._surely_forward_m():
-            rolled_m = odo_m - self._board_odo_m - self._surely_forward_m()
+        if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps):
+            rolled_m = max(0.0, odo_m - self._board_odo_m - self._surely_forward_m())
+        if rolled_m:
             self._rolled_m += rolled_m
             self._roll_run_m += rolled_m
             v_mps = 0.0
