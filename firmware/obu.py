@@ -140,6 +140,7 @@ class OnboardUnit:
         self._integral = 0.0
         self._a_lp = 0.0
         self.duty_pct = 0
+        self._duty_acc = 0            # passes since the last report << 16 plus their duties' sum (%), for their mean
         self._last_step_ms = None
         # reporting
         self.seq = 0
@@ -221,6 +222,7 @@ class OnboardUnit:
         self._control(now_ms, dt_s if dt_s < 0.1 else 0.1)
         if self.duty_pct == 0:   # braked or not driven at this pass: the next report says so if it drives by then
             self._undriven = True
+        self._duty_acc += 0x10000 + self.duty_pct
         # a report is due a period after the previous one's slot, the period being the valid command's `rpt_ms` (the
         # controller asks for faster reports while a train behind follows this one closely) or the board's own: it
         # is chosen at every pass, so a command that expires or changes it takes effect at once. Slots keep the
@@ -533,9 +535,13 @@ class OnboardUnit:
         slot = seq % _HISTORY
         self._sent_seq[slot] = seq
         self._sent_t[slot] = now_ms
+        # the mean duty (floored) of the passes since the last report (this one at least): the motor answers the mean
+        # (it is linear in duty), where one pass's duty of a loop that alternates would tell of a speed it never had
+        acc = self._duty_acc
+        self._duty_acc = 0
         payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
-                                     self.duty_pct, self.mode, self.cseq, self.sid, self._ips_fix, self._tags,
-                                     self.faults, self._rng_report)
+                                     (acc & 0xFFFF) // (acc >> 16), self.mode, self.cseq, self.sid, self._ips_fix,
+                                     self._tags, self.faults, self._rng_report)
         self.seq = wire.wrap_add(seq, 1)
         self._ips_fix = None
         if self._rng_report is not None:

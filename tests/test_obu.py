@@ -417,6 +417,29 @@ def test_a_report_names_undriven_when_a_pass_since_the_previous_one_braked_while
     assert "undriven" not in bench.last_report()["flt"], "named for the interval it braked in only"
 
 
+def test_a_reports_duty_is_the_mean_of_the_passes_since_the_one_before():
+    """The motor answers the mean duty of an interval (it is linear in duty), so a report gives the floored mean of
+    the loop's passes since the previous report, the reporting pass included, and not one pass's duty: a loop that
+    slows, brakes for a pass and drives again, has duties that differ pass to pass."""
+    bench = _running_at(600)
+    unit = bench.unit
+    bench.command(v_mmps=100, eoa_mm=3000, ttl_ms=10_000)
+    duties, means, told = [], [], []
+    for i in range(60):
+        if i == 30:
+            bench.command(v_mmps=500, eoa_mm=3000, ttl_ms=10_000)
+        reports = len(bench.sent)
+        bench.step(v_mmps=int(unit.v_mmps) if i < 30 else int(unit.v_ref_mmps))
+        duties.append(unit.duty_pct)
+        if len(bench.sent) > reports:
+            means.append(sum(duties) // len(duties))
+            told.append(bench.last_report()["duty"])
+            duties = []
+    # the first report's interval began before these passes were recorded
+    assert len(told) >= 10 and told[1:] == means[1:]
+    assert len(set(told)) > 5, "the duties changed over the run"
+
+
 def test_a_stop_target_beyond_the_end_of_authority_stops_at_the_end_of_authority():
     bench = Bench()
     unit = bench.unit

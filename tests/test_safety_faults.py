@@ -298,6 +298,12 @@ def test_a_wheel_that_starts_or_stops_spinning_is_caught_by_its_speed_step(layou
     ("lego_oval", 4, 25, 30.0, "encoder_scale:at_s=22.8,duration_s=5.553,factor=0.718,train=T2"),
     # T2 learnt a slide of 0.8x as its scale; the wheel healed while it stood and its estimate ran 9 cm ahead of it
     ("lego_oval", 6, 49, 30.0, "encoder_scale:at_s=16.9,duration_s=3.658,factor=0.802,train=T2"),
+    # T1's wheel reads 0.76x as it starts behind T2: 0.03 m/s out of the envelope for a second, the estimate 9 cm behind
+    # the train with a 3 mm sigma, and its authority 1.2 mm past T2's tail, before 0.04 m/s alone saw it
+    ("lego_oval", 5, 117, 31.0, "encoder_scale:at_s=28.2,duration_s=4.776,factor=0.76,train=T1"),
+    # T3's wheel spins 1.37x, 0.03-0.04 m/s out of the envelope, which 0.04 m/s alone let pass: T2 ran into the margin
+    # behind T3
+    ("lego_oval", 6, 109, 28.0, "encoder_scale:at_s=23.9,duration_s=3.099,factor=1.37,train=T3"),
 ])
 def test_a_wheel_that_spins_or_slides_gradually_is_caught_by_the_speed_envelope(layout, trains, seed, duration_s,
                                                                                  fault):

@@ -65,6 +65,8 @@ class UkfParams:
     step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
     step_scale_sigma: float = 0.15    # a speed step beyond that re-opens the scale to this 1-sigma (wheel slip/spin:
     #                                   3 sigma cover a wheel that reads 0.7-1.8 times the travel)
+    drift_tol_mps: float = 0.02       # reported speeds may leave the motor's band (below) by this much, plus
+    drift_tol_share: float = 0.03     # this share of the speed (the scale learnt, random slip)
     motor_tol: float = 0.10           # the motor's no-load speed, friction and traction are known within this share
     step_window_s: float = 1.0        # reported speeds are held to what the motor allows over this long (s)
 
@@ -196,6 +198,7 @@ class UkfEstimator:
         self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
         self._board_before = None    # (t_s, v_mps, duty_pct) of the report before it, while no step lies between
         self._envelope = SpeedEnvelope(profile, self.params.motor_tol, self.params.step_window_s)
+        self.speed_drifts = 0        # times reported speeds left the speed envelope (a wheel taken to spin or slide)
         self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
 
     def keep_doubt(self, low_s_m: float, high_s_m: float) -> None:
@@ -291,7 +294,7 @@ class UkfEstimator:
         return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
                 "disagreements": state.disagreements, "disagreeing": state.disagree is not None,
-                "speed_steps": state.speed_steps,
+                "speed_steps": state.speed_steps, "speed_drifts": self.speed_drifts,
                 "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
                 **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
@@ -423,12 +426,14 @@ class UkfEstimator:
     def _drifted(self, t_s, v_mps, duty_pct):
         """(travel in doubt m, scale 1-sigma) when the reported speeds, read with the scale learnt, left what the
         motor could give the train at its duties (None: not reported) over the last `step_window_s` by more than
-        `step_tol_mps` (cbtc.estimation.speed_envelope): a wheel that began to spin or slide gradually. None while
+        `drift_tol_mps` plus `drift_tol_share` of the speed (cbtc.estimation.speed_envelope): a wheel that began to spin or slide gradually. None while
         they did not."""
         scale = self.scale_error or 0.0
         found = self._envelope.observe(t_s, v_mps / (1.0 + scale), duty_pct)
-        if found is None or found[0] <= self.params.step_tol_mps or self._scale_open():
+        if found is None or found[0] <= self.params.drift_tol_mps + self.params.drift_tol_share * v_mps \
+                or self._scale_open():
             return None
+        self.speed_drifts += 1
         self._envelope.reset()
         excess_mps, over_s = found
         return excess_mps * over_s, self.params.step_scale_sigma
