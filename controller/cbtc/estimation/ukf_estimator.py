@@ -426,8 +426,8 @@ class UkfEstimator:
     def _drifted(self, t_s, v_mps, duty_pct):
         """(travel in doubt m, scale 1-sigma) when the reported speeds, read with the scale learnt, left what the
         motor could give the train at its duties (None: not reported) over the last `step_window_s` by more than
-        `drift_tol_mps` plus `drift_tol_share` of the speed (cbtc.estimation.speed_envelope): a wheel that began to spin or slide gradually. None while
-        they did not."""
+        `drift_tol_mps` plus `drift_tol_share` of the speed (cbtc.estimation.speed_envelope): a wheel that began to
+        spin or slide gradually. None while they did not."""
         scale = self.scale_error or 0.0
         found = self._envelope.observe(t_s, v_mps / (1.0 + scale), duty_pct)
         if found is None or found[0] <= self.params.drift_tol_mps + self.params.drift_tol_share * v_mps \
