@@ -6,8 +6,9 @@ Pure: reports in (board time, speed as the filter believes it, duty), a verdict 
 reports (one per `ANCHOR_S`, kept `window_s`), the speed is carried forward interval by interval under the fastest
 and the slowest the train could have gone at the duties it reported (the first-order motor of
 cbtc.railway.physics, its no-load speed, friction and traction known within `motor_tol`); the caller takes a
-reported speed outside a band by more than its tolerance for a wheel that no longer reads the travel. The duties of
-the report before count as well, since the speed measure lags the motor.
+reported speed outside a band by more than its tolerance for a wheel that no longer reads the travel. A report's
+duty is the mean over its interval; the duty of the report before counts as well, since the speed measure lags the
+motor. A train braked at a stand anchors only the fastest it can go from there.
 """
 
 import math
@@ -44,8 +45,9 @@ class SpeedEnvelope:
         self.profile = profile
         self.motor_tol = motor_tol
         self.window_s = window_s
-        self._anchors = []      # [t0_s, low_mps, high_mps]: the band carried from a report at t0_s
-        self._last = None       # (t_s, duty_pct, duty before it) of the previous report
+        self._anchors = []      # [t0_s, low_mps, high_mps]: the band carried from a report at t0_s (low None: not
+        #                         carried, from a standstill)
+        self._last = None       # (t_s, duty_pct) of the previous report
 
     def reset(self) -> None:
         """Forget the anchors (after a step was found, or speeds that mean nothing: a roll, a burst)."""
@@ -61,10 +63,11 @@ class SpeedEnvelope:
             return None
         worst = None
         if last is not None:
-            # the speed measure lags the motor by up to a report: the interval's duties and the one before it
-            t0_s, d0_pct, d_before_pct = last
+            # a report's duty is the mean over its interval; the speed measure lags the motor by a little of the
+            # interval before, so that one's duty counts too
+            t0_s, d0_pct = last
             dt_s = t_s - t0_s
-            duties = (d_before_pct, d0_pct, duty_pct)
+            duties = (d0_pct, duty_pct)
             if None in duties or dt_s > MOTOR_GAP_S:
                 # the duty is not known, or reports too far apart for their duties to tell what the motor did in
                 # between (the speed loop runs every 20 ms): traction and the brake alone
@@ -72,19 +75,23 @@ class SpeedEnvelope:
             else:
                 low_fn, high_fn = self._limits(min(duties), max(duties))
             for anchor in self._anchors:
-                anchor[1] = max(0.0, low_fn(anchor[1], dt_s))
+                if anchor[1] is not None:
+                    anchor[1] = max(0.0, low_fn(anchor[1], dt_s))
                 anchor[2] = high_fn(anchor[2], dt_s)
                 if t_s - anchor[0] < JUDGE_S:
                     continue
                 excess = v_mps - anchor[2]
-                if v_mps >= MOVING_MPS:
+                if v_mps >= MOVING_MPS and anchor[1] is not None:
                     excess = max(excess, anchor[1] - v_mps)
                 if worst is None or excess > worst[0]:
                     worst = (excess, t_s - anchor[0])
-        self._last = (t_s, duty_pct, last[1] if last is not None else duty_pct)
+        # a train braked through this interval and the one before, and standing, anchors the fastest it can go from
+        # there (a wheel that spins as it starts); not the slowest, as the speed measure lags a start
+        standing = v_mps == 0.0 and duty_pct == 0 and last is not None and last[1] == 0
+        self._last = (t_s, duty_pct)
         self._anchors = [a for a in self._anchors if t_s - a[0] <= self.window_s]
-        if v_mps >= MOVING_MPS and (not self._anchors or t_s - self._anchors[-1][0] >= ANCHOR_S):
-            self._anchors.append([t_s, v_mps, v_mps])
+        if (v_mps >= MOVING_MPS or standing) and (not self._anchors or t_s - self._anchors[-1][0] >= ANCHOR_S):
+            self._anchors.append([t_s, None if standing else v_mps, v_mps])
         return worst
 
     def _limits(self, d_low_pct, d_high_pct):
