@@ -140,7 +140,9 @@ class OnboardUnit:
         self._integral = 0.0
         self._a_lp = 0.0
         self.duty_pct = 0
-        self._duty_acc = 0            # passes since the last report << 16 plus their duties' sum (%), for their mean
+        # passes since the last report << 16 plus their duties' sum (%), for their mean (the sum fits 16 bits for
+        # report periods up to 13 s of 20 ms passes, where a command's 0.8 s time to live has long run out)
+        self._duty_acc = 0
         self._last_step_ms = None
         # reporting
         self.seq = 0
