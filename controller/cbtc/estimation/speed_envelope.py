@@ -4,11 +4,11 @@ the speed leaves what traction, the motor and the brake allow.
 
 Pure: reports in (board time, speed as the filter believes it, duty), a verdict out. From anchors laid along the
 reports (one per `ANCHOR_S`, kept `window_s`), the speed is carried forward interval by interval under the fastest
-and the slowest the train could have gone at the duties it reported (the first-order motor of
-cbtc.railway.physics, its no-load speed, friction and traction known within `motor_tol`); the caller takes a
-reported speed outside a band by more than its tolerance for a wheel that no longer reads the travel. A report's
-duty is the mean over its interval; the duty of the report before counts as well, since the speed measure lags the
-motor. A train braked at a stand anchors only the fastest it can go from there.
+and the slowest the train could have gone at the duties it reported (the first-order motor of cbtc.railway.physics,
+its no-load speed as learnt by cbtc.estimation.motor_gain, friction and traction known within `motor_tol`); the
+caller takes a reported speed outside a band by more than its tolerance for a wheel that no longer reads the travel.
+A report's duty is the mean over its interval; the duty of the report before counts as well, since the speed
+measure lags the motor. A train braked at a stand anchors only the fastest it can go from there.
 """
 
 import math
@@ -48,6 +48,12 @@ class SpeedEnvelope:
         self._anchors = []      # [t0_s, low_mps, high_mps]: the band carried from a report at t0_s (low None: not
         #                         carried, from a standstill)
         self._last = None       # (t_s, duty_pct) of the previous report
+        self._gain, self._gain_tol = 1.0, motor_tol   # the motor's no-load speed over the profile's, and its band
+
+    def set_motor(self, gain: float, gain_tol: float) -> None:
+        """The motor's no-load speed is `gain` times the profile's, within `gain_tol` of it (MotorGain learns them);
+        friction and traction stay known within `motor_tol`."""
+        self._gain, self._gain_tol = gain, gain_tol
 
     def reset(self) -> None:
         """Forget the anchors (after a step was found, or speeds that mean nothing: a roll, a burst)."""
@@ -99,8 +105,9 @@ class SpeedEnvelope:
         p, u = self.profile, self.motor_tol
         if d_low_pct > 0:
             # driven all along: the motor pulls towards its steady speed at the duty, within the tolerances
-            v_low = d_low_pct / 100.0 * p.v_noload_mps * (1.0 - u) - p.friction_mps2 * (1.0 + u) * p.motor_tau_s
-            v_high = d_high_pct / 100.0 * p.v_noload_mps * (1.0 + u)
+            v_noload_mps, g = p.v_noload_mps * self._gain, self._gain_tol
+            v_low = d_low_pct / 100.0 * v_noload_mps * (1.0 - g) - p.friction_mps2 * (1.0 + u) * p.motor_tau_s
+            v_high = d_high_pct / 100.0 * v_noload_mps * (1.0 + g) - p.friction_mps2 * (1.0 - u) * p.motor_tau_s
             return (lambda v, dt: ride_mps(v, dt, v_low, p.motor_tau_s, p.accel_max_mps2 * (1.0 - u), p.beta_e_mps2),
                     lambda v, dt: ride_mps(v, dt, v_high, p.motor_tau_s, p.accel_max_mps2, p.beta_e_mps2))
         # not driven at one end at least: braked, coasting or driven somewhere in between, as hard as traction allows

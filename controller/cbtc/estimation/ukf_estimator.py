@@ -28,6 +28,7 @@ from numpy.linalg import LinAlgError
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.fix_consensus import agreeing_anchor
+from cbtc.estimation.motor_gain import MotorGain
 from cbtc.estimation.speed_envelope import SpeedEnvelope
 from cbtc.estimation.track_ukf import (
     K_HIGH,
@@ -67,7 +68,10 @@ class UkfParams:
     #                                   3 sigma cover a wheel that reads 0.7-1.8 times the travel)
     drift_tol_mps: float = 0.02       # reported speeds may leave the motor's band (below) by this much, plus
     drift_tol_share: float = 0.03     # this share of the speed (the scale learnt, random slip)
-    motor_tol: float = 0.10           # the motor's no-load speed, friction and traction are known within this share
+    motor_tol: float = 0.10           # friction, traction and (until learnt) no-load speed are known within this share
+    motor_learnt_tol: float = 0.04    # ... its no-load speed within this once learnt (cbtc.estimation.motor_gain)
+    motor_learn_s: float = 10.0       # driving it is learnt over (s): the median of that many 1 s windows
+    motor_needed_s: float = 3.0       # driving learnt before the learnt band is used (s)
     step_window_s: float = 1.0        # reported speeds are held to what the motor allows over this long (s)
 
     def __post_init__(self):
@@ -198,6 +202,8 @@ class UkfEstimator:
         self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
         self._board_before = None    # (t_s, v_mps, duty_pct) of the report before it, while no step lies between
         self._envelope = SpeedEnvelope(profile, self.params.motor_tol, self.params.step_window_s)
+        self._motor = MotorGain(profile, self.params.motor_tol, self.params.motor_learnt_tol,
+                                self.params.motor_learn_s, self.params.motor_needed_s)
         self.speed_drifts = 0        # times reported speeds left the speed envelope (a wheel taken to spin or slide)
         self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
 
@@ -295,6 +301,7 @@ class UkfEstimator:
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
                 "disagreements": state.disagreements, "disagreeing": state.disagree is not None,
                 "speed_steps": state.speed_steps, "speed_drifts": self.speed_drifts,
+                "motor_gain": round(self._motor.gain, 4), "motor_learnt_s": round(self._motor.learnt_s, 1),
                 "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
                 **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
@@ -335,6 +342,10 @@ class UkfEstimator:
             self._envelope.reset()
         else:
             step = self._drifted(t_s, v_mps, duty_pct if "mode" in report else None)
+        if rolled_m or step is not None:
+            self._motor.reset()   # the speeds it learnt from may hold some of the wheel's spin or slide
+        else:
+            self._motor.observe(t_s, v_mps / (1.0 + (self.scale_error or 0.0)), duty_pct, self._scale_settled())
         self._board_before = None if rolled_m or step is not None or self._board_t_s is None else (
             self._board_t_s, self._board_v_mps, self._board_duty_pct)
         self._board_odo_m, self._board_t_s, self._board_v_mps = odo_m, t_s, v_mps
@@ -429,6 +440,7 @@ class UkfEstimator:
         `drift_tol_mps` plus `drift_tol_share` of the speed (cbtc.estimation.speed_envelope): a wheel that began to
         spin or slide gradually. None while they did not."""
         scale = self.scale_error or 0.0
+        self._envelope.set_motor(self._motor.gain, self._motor.tol)
         found = self._envelope.observe(t_s, v_mps / (1.0 + scale), duty_pct)
         if found is None or found[0] <= self.params.drift_tol_mps + self.params.drift_tol_share * v_mps \
                 or self._scale_open():
@@ -437,6 +449,15 @@ class UkfEstimator:
         self._envelope.reset()
         excess_mps, over_s = found
         return excess_mps * over_s, self.params.step_scale_sigma
+
+    def _scale_settled(self) -> bool:
+        """The wheel's scale is learnt to a quarter of the motor's learnt band, and nothing disagrees with the
+        wheel: the speeds it reads tell of the motor."""
+        state = self._newest
+        if state is None or len(state.snap[1]) <= K or state.disagree is not None or state.tag_offset is not None \
+                or state.doubt is not None:
+            return False
+        return float(state.snap[2][K][K]) <= (0.25 * self.params.motor_learnt_tol) ** 2
 
     def _scale_open(self) -> bool:
         """The scale is still as open as a step left it (half its 1-sigma or more): a wheel already in doubt."""

@@ -1,0 +1,84 @@
+"""The motor's gain learnt while a train is driven, and the speed envelope that narrows with it (pure)."""
+
+import pytest
+
+from cbtc.estimation.motor_gain import MotorGain
+from cbtc.estimation.speed_envelope import SpeedEnvelope
+from cbtc.railway.physics import acceleration_mps2
+from cbtc.railway.train_profile import TrainProfile
+
+PROFILE = TrainProfile()
+
+
+def _drive(gain, v_target_mps, seconds, scale=lambda t: 1.0, settled=True, learner=None, envelope=None, t0_s=0.0,
+           v0_mps=0.0):
+    """A train whose motor gives `gain` times the profile's no-load speed, held at `v_target_mps` by a speed loop that
+    knows only the profile (a pass every 10 ms), its wheel reading `scale(t)` times the truth; every 50 ms a report
+    (mean duty of its passes, measured speed) goes to `learner` and `envelope`. Returns (learner, envelope, worst
+    envelope excess beyond the drift tolerance, the true speed at the end)."""
+    truth = PROFILE.with_changes(v_noload_mps=PROFILE.v_noload_mps * gain)
+    learner = learner or MotorGain(PROFILE, 0.10, 0.04, 10.0, 3.0)
+    v, duties, worst = v0_mps, [], -1.0
+    for k in range(1, int(seconds / 0.01) + 1):
+        t = t0_s + k * 0.01
+        v_read = v * scale(t)
+        duty = max(1, min(100, round(100 * (v_target_mps + 0.02) / PROFILE.v_noload_mps
+                                     + 400 * (v_target_mps - v_read))))
+        duties.append(duty)
+        for _ in range(10):
+            v = max(0.0, v + acceleration_mps2(v, duty, "drive", truth) * 0.001)
+        if k % 5 == 0:
+            mean_duty = sum(duties) // len(duties)
+            duties = []
+            learner.observe(t, v * scale(t), mean_duty, settled)
+            if envelope is not None:
+                envelope.set_motor(learner.gain, learner.tol)
+                found = envelope.observe(t, v * scale(t), mean_duty)
+                if found is not None:
+                    worst = max(worst, found[0] - (0.02 + 0.03 * v * scale(t)))
+    return learner, envelope, worst, v
+
+
+@pytest.mark.parametrize("gain", [0.9, 1.0, 1.08])
+def test_a_motor_off_the_profile_is_learnt_to_a_percent(gain):
+    learner = _drive(gain, 0.45, 12.0)[0]
+    assert learner.gain == pytest.approx(gain, abs=0.015)
+    assert learner.tol == 0.04 and learner.learnt_s >= 3.0
+
+
+def test_nothing_is_learnt_at_the_traction_limit_unsettled_or_slow():
+    """A start at full duty rides the traction limit, where the motor's law does not hold; a wheel whose scale is not
+    settled says nothing of the motor; below 0.15 m/s neither does the speed measure."""
+    start = MotorGain(PROFILE, 0.10, 0.04, 10.0, 3.0)
+    v = 0.0
+    for k in range(1, 16):
+        for _ in range(50):
+            v += acceleration_mps2(v, 100, "drive", PROFILE) * 0.001
+        start.observe(k * 0.05, v, 100, True)
+    assert start.learnt_s == 0.0 and start.gain == 1.0 and start.tol == 0.10
+    assert _drive(0.9, 0.45, 6.0, settled=False)[0].learnt_s == 0.0
+    assert _drive(0.9, 0.1, 6.0)[0].learnt_s == 0.0
+
+
+def test_a_window_that_caught_a_spin_does_not_move_the_gain_and_reset_forgets():
+    learner = _drive(1.0, 0.45, 6.0)[0]
+    _drive(1.0, 0.45, 1.2, scale=lambda t: 1.12, learner=learner, t0_s=6.0, v0_mps=0.45)
+    _drive(1.0, 0.45, 2.0, learner=learner, t0_s=7.2, v0_mps=0.45 / 1.12)
+    assert learner.gain == pytest.approx(1.0, abs=0.015)
+    learner.reset()
+    assert learner.gain == 1.0 and learner.learnt_s == 0.0 and learner.tol == 0.10
+
+
+def test_a_wheel_that_begins_to_spin_at_cruise_is_seen_only_by_the_learnt_band():
+    """At 0.45 m/s a wheel that begins to read 1.15x within a second stays inside the profile's 10 % band (plus the
+    drift tolerance) and leaves the learnt one."""
+    def spin(t):
+        return 1.0 + 0.15 * min(1.0, max(0.0, t - 8.0))
+
+    learner = _drive(1.0, 0.45, 8.0)[0]
+    worst_learnt = _drive(1.0, 0.45, 3.0, scale=spin, learner=learner, envelope=SpeedEnvelope(PROFILE, 0.10, 1.0),
+                          t0_s=8.0, v0_mps=0.45)[2]
+    profile_only = MotorGain(PROFILE, 0.10, 0.10, 10.0, 3.0)
+    worst_profile = _drive(1.0, 0.45, 3.0, scale=spin, learner=profile_only,
+                           envelope=SpeedEnvelope(PROFILE, 0.10, 1.0), t0_s=8.0, v0_mps=0.45)[2]
+    assert worst_learnt > 0.0 > worst_profile, (worst_learnt, worst_profile)
