@@ -149,8 +149,16 @@ def test_paper_scenario_zone_and_trains_as_processes(fleet):
     """Station stops and start positions of the paper scenario over the broker; Ctrl-C stops the trains first."""
     zone = fleet.start_zone()
     fleet.start_trains(duration_s=24)
-    fleet.wait(lambda s: s["t_s"] >= 19.0, 30, "19 s of running")
+
+    def stopped_and_ran_on(status):
+        zone_summary = fleet.zone_file("zone", "summary")
+        return zone_summary is not None and all(t["distance_m"] > 2.5 for t in status["trains"]) \
+            and all(row["station_stops"] >= 1 for row in zone_summary["trains"].values())
+
+    fleet.wait(stopped_and_ran_on, 30, "a station stop and 2.5 m run by each train")
     summary = fleet.stop_zone(zone, "zone")          # Ctrl-C: stop commands, then offline
+    fleet.wait(lambda s: all(t["v_mps"] == 0.0 for t in s["trains"]), 10, "the trains to stand")
+    fleet.trains.send_signal(signal.SIGINT)
     assert fleet.trains.wait(20) == 0, fleet.logs()  # exit code 0: no collision
     with open(fleet.trains_summary) as fh:
         trains = json.load(fh)
