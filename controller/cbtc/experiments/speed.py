@@ -29,7 +29,6 @@ def sim_speed(layout_name: str, n_trains: int, duration_s: float, seed: int = 0)
     """Real-time factor of `n_trains` on `layout_name` for `duration_s` simulated seconds (the paper's scenario for
     two trains on a layout with its stations), and of the same world under a do-nothing controller."""
     from cbtc.layout_files import load_layout
-    from cbtc.protocol import wire
     from cbtc.sim.simulation import Simulation
     from cbtc.zone.config import paper_scenario, queue_scenario
 
@@ -53,18 +52,13 @@ def sim_speed(layout_name: str, n_trains: int, duration_s: float, seed: int = 0)
                 zone_s[0] += time.perf_counter() - begun
         return call
 
-    # the zone's own time inside the run: its report handling and its cycles, each call clocked
-    full.zc_client.unsubscribe(wire.REPORT_FILTER)
-    full.zc_client.subscribe(wire.REPORT_FILTER, timed(full.zc.on_report))
-    full._cycle.cancel()
-    full._cycle = full.scheduler.call_every(config.cycle_s, timed(full.zc.cycle), start_s=0.05)
+    full.wrap_zone(timed)   # the zone's own time inside the run: its report handling and its cycles, each clocked
     started = time.perf_counter()
     summary = full.run().summary()
     full_s = time.perf_counter() - started
 
     idle = Simulation(config)
-    idle.zc_client.unsubscribe(wire.REPORT_FILTER)   # the controller hears nothing and runs no cycle
-    idle._cycle.cancel()
+    idle.silence_zone()
     started = time.perf_counter()
     idle.run()
     idle_s = time.perf_counter() - started

@@ -79,6 +79,20 @@ class Simulation:
         self.zc.start()
         self._cycle = self.scheduler.call_every(self.config.cycle_s, self.zc.cycle)
 
+    def wrap_zone(self, wrap):
+        """Run the zone's report handling and cycles through `wrap(fn)` (cbtc bench sim clocks each call). Before
+        `run()`."""
+        self.zc_client.unsubscribe(wire.REPORT_FILTER)
+        self.zc_client.subscribe(wire.REPORT_FILTER, wrap(self.zc.on_report))
+        self._cycle.cancel()
+        self._cycle = self.scheduler.call_every(self.config.cycle_s, wrap(self.zc.cycle), start_s=0.05)
+
+    def silence_zone(self):
+        """The zone hears no report and runs no cycle: the world alone, its trains standing (cbtc bench sim's
+        reference). Before `run()`."""
+        self.zc_client.unsubscribe(wire.REPORT_FILTER)
+        self._cycle.cancel()
+
     def clients(self):
         """Every client of the mock broker in this run: the zone's, the trains', the recorder's."""
         return [self.zc_client] + [t.client for t in self.trains] + [self.recorder._sniffer]
