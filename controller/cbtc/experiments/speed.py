@@ -142,7 +142,7 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
 
     from cbtc.layout_files import load_layout
     from cbtc.protocol import wire
-    from cbtc.sim.simulation import Simulation
+    from cbtc.sim.simulation import FIRST_CYCLE_S, Simulation
     from cbtc.zone.config import queue_scenario, train_key
     from cbtc.zone.factory import build_zone
 
@@ -160,7 +160,7 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
     level = logger.level
     logger.setLevel(logging.ERROR)
     try:
-        next_cycle_s = 0.05
+        next_cycle_s = FIRST_CYCLE_S
         started = time.perf_counter()
         for recv_s, topic, payload in heard:
             while next_cycle_s <= recv_s:

@@ -17,6 +17,8 @@ from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import ScenarioConfig, train_key
 from cbtc.zone.factory import build_zone
 
+FIRST_CYCLE_S = 0.05   # the zone's first cycle: once the boards have had a loop or two to report
+
 
 class Simulation:
     """Everything of one run, wired and ready to `run()`; the parts are public for tests and fault injection."""
@@ -55,7 +57,7 @@ class Simulation:
         for index, train in enumerate(self.trains):
             # stagger the boards' loops a little, as real boards are
             self.scheduler.call_every(config.loop_s, self._ticker(train), start_s=0.001 * (index + 1))
-        self._cycle = self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=0.05)
+        self._cycle = self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=FIRST_CYCLE_S)
         self._keys = keys
         self.zone_restarts = 0
         self.report_sink = None   # callable(train_id, report, recv_s): every report the zone accepts (a recording)
@@ -85,7 +87,7 @@ class Simulation:
         self.zc_client.unsubscribe(wire.REPORT_FILTER)
         self.zc_client.subscribe(wire.REPORT_FILTER, wrap(self.zc.on_report))
         self._cycle.cancel()
-        self._cycle = self.scheduler.call_every(self.config.cycle_s, wrap(self.zc.cycle), start_s=0.05)
+        self._cycle = self.scheduler.call_every(self.config.cycle_s, wrap(self.zc.cycle), start_s=FIRST_CYCLE_S)
 
     def silence_zone(self):
         """The zone hears no report and runs no cycle: the world alone, its trains standing (cbtc bench sim's
