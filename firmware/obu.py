@@ -526,10 +526,15 @@ class OnboardUnit:
         if self._rolled:
             faults.append("roll")
             self._rolled = False
+        # the mean duty (floored) of the passes since the last report (this one at least): the motor answers the mean
+        # (it is linear in duty), where one pass's duty of a loop that alternates would tell of a speed it never had
+        acc = self._duty_acc
+        self._duty_acc = 0
+        duty_pct = (acc & 0xFFFF) // (acc >> 16)
         if self._undriven:
-            # driven now, but not at every pass since the last report: its speed may have fallen as fast as the
-            # brake allows, which the duty alone would not tell the controller
-            if self.duty_pct > 0 and self.mode == "run":
+            # a duty above 0, but not driven at every pass since the last report (braked at this pass or one before):
+            # its speed may have fallen as fast as the brake allows, which the mean duty alone would not tell
+            if duty_pct > 0 and self.mode == "run":
                 faults.append("undriven")
             self._undriven = False
         self.faults = faults
@@ -537,12 +542,8 @@ class OnboardUnit:
         slot = seq % _HISTORY
         self._sent_seq[slot] = seq
         self._sent_t[slot] = now_ms
-        # the mean duty (floored) of the passes since the last report (this one at least): the motor answers the mean
-        # (it is linear in duty), where one pass's duty of a loop that alternates would tell of a speed it never had
-        acc = self._duty_acc
-        self._duty_acc = 0
         payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
-                                     (acc & 0xFFFF) // (acc >> 16), self.mode, self.cseq, self.sid, self._ips_fix,
+                                     duty_pct, self.mode, self.cseq, self.sid, self._ips_fix,
                                      self._tags, self.faults, self._rng_report)
         self.seq = wire.wrap_add(seq, 1)
         self._ips_fix = None

@@ -417,6 +417,26 @@ def test_a_report_names_undriven_when_a_pass_since_the_previous_one_braked_while
     assert "undriven" not in bench.last_report()["flt"], "named for the interval it braked in only"
 
 
+def test_a_report_names_undriven_when_it_brakes_at_its_own_pass_after_driving_since_the_previous_one():
+    """Driven at a pass after the previous report, braked at the report's own pass: the mean duty it reports is
+    above 0, so it names `undriven` too, or the controller would read a braked interval as driven at a low duty and
+    take the brake's fall in speed for a sliding wheel."""
+    bench = _running_at(600)
+    unit = bench.unit
+    reports = len(bench.sent)
+    while len(bench.sent) == reports:   # steady at the commanded speed up to a report
+        bench.step(v_mmps=int(unit.v_ref_mmps))
+    reports = len(bench.sent)
+    bench.step(v_mmps=int(unit.v_ref_mmps))   # a driven pass of the next interval
+    assert unit.duty_pct > 0 and len(bench.sent) == reports
+    bench.command(v_mmps=500, eoa_mm=3000, stop_mm=unit.odo_mm + 1, ttl_ms=10_000)   # a stop just ahead: it brakes
+    while len(bench.sent) == reports:
+        bench.step(v_mmps=int(unit.v_mmps))
+    report = bench.last_report()
+    assert bench.motor.mode == "brake" and report["mode"] == "run" and report["duty"] > 0
+    assert "undriven" in report["flt"]
+
+
 def test_a_reports_duty_is_the_mean_of_the_passes_since_the_one_before():
     """The motor answers the mean duty of an interval (it is linear in duty), so a report gives the floored mean of
     the loop's passes since the previous report, the reporting pass included, and not one pass's duty: a loop that
