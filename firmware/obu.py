@@ -429,7 +429,8 @@ class OnboardUnit:
                 self._brake()
                 return
             self.mode = mode
-        if self.v_mmps > self.trip_curve_mmps() + cfg["trip_margin_mmps"]:
+        trip_mmps = self.trip_curve_mmps()
+        if self.v_mmps > trip_mmps + cfg["trip_margin_mmps"]:
             self.trips += 1
             self.mode = "trip"
             self._brake()
@@ -478,6 +479,10 @@ class OnboardUnit:
                     return
         else:
             self._sat_ms = 0
+        if self.v_mmps > trip_mmps:
+            # over the trip curve, within its margin (the end of authority stopped moving or stepped back under a
+            # train riding its service curve): brake at this pass, whatever duty a lagging loop still asks
+            duty = -1
         if duty < 0 and self.v_mmps > 0:
             # the motor's own drag at zero duty (v / tau: weak at low speed) is less braking than the curve asks:
             # short the windings for this pass (brake: it cannot reverse the train, as a negative duty could)

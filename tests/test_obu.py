@@ -390,6 +390,24 @@ def test_a_train_braked_onto_a_station_mark_a_mm_short_is_held_there_not_driven_
     assert bench.unit.braking_curve_mmps(800) > 0, "an end of authority is no station: its curve is unchanged"
 
 
+def test_a_train_over_its_trip_curve_within_the_margin_brakes_at_that_pass_and_goes_on():
+    """The end of authority steps back under a train riding its service curve (the train ahead braked hard and its
+    rollback allowance grew): at a pass where the measured speed is over the trip curve but within the trip margin,
+    the board brakes rather than drive at the duty a lagging loop may still ask; it does not trip, and its reference
+    stays on the curve (the run goes on once it is back under it)."""
+    bench = _running_at(600)
+    unit = bench.unit
+    v_mmps = unit.v_mmps
+    bench.command(v_mmps=500, eoa_mm=unit.odo_mm + 250, ttl_ms=10_000)
+    for _ in range(40):   # the train keeps its speed until it is over the trip curve
+        bench.step(v_mmps=v_mmps)
+        if unit.v_mmps > unit.trip_curve_mmps():
+            break
+    assert unit.trip_curve_mmps() < unit.v_mmps < unit.trip_curve_mmps() + unit.cfg["trip_margin_mmps"]
+    assert bench.motor.mode == "brake", "braked at the pass over the trip curve"
+    assert unit.trips == 0 and unit.mode == "run" and unit.v_ref_mmps > 0
+
+
 def test_a_report_names_undriven_when_a_pass_since_the_previous_one_braked_while_it_drives_now():
     """Riding a braking curve, the loop brakes for a pass and drives again between two reports: the report's duty
     alone would say driven throughout, so it names `undriven` (the controller then allows the brake's fall in speed
