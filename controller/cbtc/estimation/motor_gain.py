@@ -37,7 +37,7 @@ class MotorGain:
         """Forget what was learnt (a wheel found spinning or sliding: the speeds before may hold some of it)."""
         self.gain = 1.0
         self._samples.clear()
-        self._window = None   # [v0_mps, duty seconds, speed metres, seconds] since the window began
+        self._window = None   # [v0_mps, duty seconds, speed metres, seconds, newest v_mps] since the window began
         self._last_t_s = None
 
     @property
@@ -61,19 +61,20 @@ class MotorGain:
         usable = settled and duty_pct > 0 and v_mps >= LEAST_MPS and pull_mps2 - p.friction_mps2 < p.accel_max_mps2
         window = self._window
         if not usable or last_t_s is None or not 0.0 < t_s - last_t_s <= GAP_S:
-            self._window = [v_mps, 0.0, 0.0, 0.0] if usable else None
+            self._window = [v_mps, 0.0, 0.0, 0.0, v_mps] if usable else None
             return
-        if window is None:
-            self._window = [v_mps, 0.0, 0.0, 0.0]
-            window = self._window
+        if window is None:   # the report before was not usable: a window begins at this one
+            self._window = [v_mps, 0.0, 0.0, 0.0, v_mps]
+            return
         dt_s = t_s - last_t_s
         window[1] += duty_pct / 100.0 * dt_s
-        window[2] += v_mps * dt_s
+        window[2] += 0.5 * (window[4] + v_mps) * dt_s   # the speed's mean over the interval, by the trapezoid
         window[3] += dt_s
-        v0_mps, duty_s, speed_m, span_s = window
+        window[4] = v_mps
+        v0_mps, duty_s, speed_m, span_s, _v = window
         if span_s < WINDOW_S:
             return
-        self._window = [v_mps, 0.0, 0.0, 0.0]
+        self._window = [v_mps, 0.0, 0.0, 0.0, v_mps]
         sample = (speed_m / span_s + p.motor_tau_s * (p.friction_mps2 + (v_mps - v0_mps) / span_s)) \
             / (duty_s / span_s * p.v_noload_mps)
         if GAIN_BAND[0] <= sample <= GAIN_BAND[1]:
