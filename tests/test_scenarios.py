@@ -237,3 +237,29 @@ def test_the_controller_tells_each_board_a_low_bound_of_its_encoder_scale(scale_
     stated = sim.trains[0].obu.cmd["odo_mm_per_m"]
     truth = 1000.0 * (1.0 + scale_error)
     assert truth - 15.0 <= stated <= truth
+
+
+def test_a_dwell_runs_from_the_standstill_not_from_when_the_speed_measure_reached_zero():
+    """A train alone, 2 s at every station: the dwell runs from the first report whose odometer reads where the train
+    stands (its speed measure decays for a while after the last count), so the train truly stands 2.0 to 2.05 s at
+    every stop: never less, and not the 2.04-2.10 s of a clock started when the speed measure said standing."""
+    from cbtc.railway.train_profile import TrainProfile
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import ScenarioConfig, TrainSpec
+
+    layout = load_layout("itb_square")
+    sim = Simulation(ScenarioConfig(layout=layout, seed=2, duration_s=70.0, dwell_s=(2.0, 2.0),
+                                    trains=[TrainSpec("A", 0.5, tuple(st.name for st in layout.stations),
+                                                      TrainProfile())]))
+    train, stands_s, stopped = sim.trains[0], [], [None]
+
+    def watch(now_s):
+        if train.v_mps == 0.0 and stopped[0] is None:
+            stopped[0] = now_s
+        elif train.v_mps > 0.0 and stopped[0] is not None:
+            stands_s.append(now_s - stopped[0])
+            stopped[0] = None
+    sim.scheduler.call_every(0.001, watch, start_s=0.0)
+    sim.run()
+    dwells_s = [s for s in stands_s if s > 1.0]
+    assert len(dwells_s) >= 6 and 2.0 <= min(dwells_s) and max(dwells_s) <= 2.05, dwells_s

@@ -75,6 +75,7 @@ class TrainState:
         self.leaving = None          # the station whose dwell just ended, until the train is past it
         self.dwell_until_s = None
         self.odo_moved = True        # the newest report's odometer differs from the one before (or it is the first)
+        self.still_since_s = None    # controller time of the first report with the odometer it reads now
         self.dwells = 0
         self.limit_s = None          # current authority limit along the track (m), for supervision
         self.safe_m = None           # distance the safety limit allowed at the last command (m)
@@ -319,6 +320,8 @@ class ZoneController:
                 self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
                                    "updating its filter", payload, recv_s)
         state.odo_moved = previous is None or report["odo_mm"] != previous["odo_mm"]
+        if state.odo_moved:
+            state.still_since_s = state.clock.to_controller_s(report["t_ms"])
         state.report = report
         if state.report_recv_s is None:
             self._unheard -= 1
@@ -600,8 +603,10 @@ class ZoneController:
                 return None
             state.leaving = None
         if standing and abs(to_stop_m) <= station.window_m:
+            # the dwell runs from the first report the odometer read where it stands: the train stood still by then,
+            # and the reports since only showed its speed measure decaying
             low, high = state.setup.dwell_s
-            state.dwell_until_s = now_s + self._rng.uniform(low, high)
+            state.dwell_until_s = min(now_s, state.still_since_s) + self._rng.uniform(low, high)
             return 0.0
         if to_stop_m < -station.window_m:
             # passed the stop point beyond its window: count it and move on rather than reverse
