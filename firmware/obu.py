@@ -106,17 +106,16 @@ class OnboardUnit:
         cpm = cfg["counts_per_m"]
         if not isinstance(cpm, int):
             if not isinstance(cpm, float) or cpm != int(cpm):
-                raise ValueError("counts_per_m must be a whole number of encoder counts per metre, not %r: round "
-                                 "it (cbtc calibrate encoder prints the value to use)" % (cpm,))
+                raise ValueError("counts_per_m must be whole, not %r: round it (cbtc calibrate encoder prints it)"
+                                 % (cpm,))
             cfg = dict(cfg)
             cfg["counts_per_m"] = int(cpm)
         r_s = cfg["reaction_ms"] / 1000
         dec = cfg["dec_mmps2"]
         emergency = cfg["emergency_dec_mmps2"]
         if emergency <= dec or cfg["stop_window_mm"] < r_s * r_s * dec * emergency / (2 * (emergency - dec)):
-            raise ValueError("the service curve would cross the trip curve: emergency_dec_mmps2 must exceed "
-                             "dec_mmps2 and stop_window_mm be at least reaction^2 dec emergency / (2 (emergency "
-                             "- dec)) mm")
+            raise ValueError("curves cross: need emergency_dec_mmps2 > dec_mmps2, stop_window_mm >= "
+                             "reaction^2 dec emergency / (2 (emergency - dec))")
         self.cfg = cfg
         self._report_topic = wire.topic_report(train_id)
         self._cmd_topic = wire.topic_command(train_id)
@@ -536,12 +535,11 @@ class OnboardUnit:
         acc = self._duty_acc
         self._duty_acc = 0
         duty_pct = (acc & 0xFFFF) // (acc >> 16)
-        if self._undriven:
+        if self._undriven and duty_pct > 0 and self.mode == "run":
             # a duty above 0, but not driven at every pass since the last report (braked at this pass or one before):
             # its speed may have fallen as fast as the brake allows, which the mean duty alone would not tell
-            if duty_pct > 0 and self.mode == "run":
-                faults.append("undriven")
-            self._undriven = False
+            faults.append("undriven")
+        self._undriven = False
         self.faults = faults
         seq = self.seq
         slot = seq % _HISTORY

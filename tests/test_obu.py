@@ -207,13 +207,13 @@ def test_the_service_curve_stays_under_the_trip_curve_at_every_scale_and_distanc
 def test_a_stop_window_too_short_for_the_curves_and_a_fractional_encoder_scale_are_refused_at_boot():
     make = lambda config: obu.OnboardUnit("A", KEY, 9, FakeEncoder(), FakeIps(), FakeRfid(), FakeMotor(), print,
                                           config)
-    with pytest.raises(ValueError, match="counts_per_m must be a whole number.*1043.7"):
+    with pytest.raises(ValueError, match="counts_per_m must be whole.*1043.7"):
         make({"counts_per_m": 1043.7})
     assert make({"counts_per_m": 1044.0}).cfg["counts_per_m"] == 1044
     assert isinstance(make({"counts_per_m": 1044.0}).cfg["counts_per_m"], int)
     with pytest.raises(ValueError, match="stop_window_mm"):
         make({"stop_window_mm": 3})
-    with pytest.raises(ValueError, match="emergency_dec_mmps2 must exceed"):
+    with pytest.raises(ValueError, match="emergency_dec_mmps2 > dec_mmps2"):
         make({"emergency_dec_mmps2": 800})
 
 
