@@ -60,11 +60,9 @@ class MotorGain:
         pull_mps2 = (duty_pct / 100.0 * p.v_noload_mps * self.gain * (1.0 + self.motor_tol) - v_mps) / p.motor_tau_s
         usable = settled and duty_pct > 0 and v_mps >= LEAST_MPS and pull_mps2 - p.friction_mps2 < p.accel_max_mps2
         window = self._window
-        if not usable or last_t_s is None or not 0.0 < t_s - last_t_s <= GAP_S:
+        if not usable or window is None or not 0.0 < t_s - last_t_s <= GAP_S:
+            # a window begins at a usable report after one that was not (or after a gap): not with the interval before
             self._window = [v_mps, 0.0, 0.0, 0.0, v_mps] if usable else None
-            return
-        if window is None:   # the report before was not usable: a window begins at this one
-            self._window = [v_mps, 0.0, 0.0, 0.0, v_mps]
             return
         dt_s = t_s - last_t_s
         window[1] += duty_pct / 100.0 * dt_s

@@ -320,8 +320,6 @@ class ZoneController:
                 self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
                                    "updating its filter", payload, recv_s)
         state.odo_moved = previous is None or report["odo_mm"] != previous["odo_mm"]
-        if state.odo_moved:
-            state.still_since_s = state.clock.to_controller_s(report["t_ms"])
         state.report = report
         if state.report_recv_s is None:
             self._unheard -= 1
@@ -329,6 +327,8 @@ class ZoneController:
             heapq.heappush(self._heard, (recv_s, state.rank, state))
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+        if state.odo_moved:
+            state.still_since_s = state.report_t_s
         state.reports_taken += 1
         self._moved.add(state)
         if self.report_sink is not None:
