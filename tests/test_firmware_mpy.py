@@ -216,8 +216,7 @@ print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
     assert rc == 0 and "OK" in out, (out, err)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
     print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
-    # 33664 B with the brake over the trip curve and shorter boot-time messages (33792, the limit, before them);
-    # the board's own figure is test_heap32's
+    # 33664 B on the unix port; the board's own figure is test_heap32's
     assert peak < 33 * 1024, "leave the ESP8266 room for the network stack and umqtt"
 
 
