@@ -99,3 +99,18 @@ def test_a_window_begins_at_the_first_usable_report_and_means_the_speed_by_the_t
         learner.observe(t_s, v_mps, duty_pct, k > 0)
     assert learner.learnt_s == 1.0
     assert learner.gain == pytest.approx(gain, rel=1e-3)
+
+
+def test_a_stop_keeps_the_motor_learnt():
+    """A lone train on itb_square learns its motor between stations; the counts its board flags `roll` while braking
+    to a stand at each one tell nothing of the motor and must not make it forget (on the code that reset it there,
+    the 2 s learnt by 8 s went back to 0, and a wheel that began to spin 12 % after a stop went unseen)."""
+    from cbtc.sim.runs import sim_config
+    from cbtc.sim.simulation import Simulation
+
+    sim = Simulation(sim_config("itb_square", 1, 0, 20.0))
+    learnt = []
+    for t_s in range(1, 21):
+        sim.scheduler.run_until(float(t_s))
+        learnt.append(sim.zc.trains["T1"].estimator.counters()["motor_learnt_s"])
+    assert learnt[-1] >= 3.0 and all(b >= a for a, b in zip(learnt, learnt[1:])), learnt

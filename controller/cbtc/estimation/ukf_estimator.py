@@ -315,7 +315,7 @@ class UkfEstimator:
         # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead;
         # the part a train braking from speed surely made forward stays travel (_may_have_turned, _surely_forward_m)
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
-        rolled_m, run_m = 0.0, self._roll_run_m
+        rolled_m, run_m, burst = 0.0, self._roll_run_m, False
         if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps):
             rolled_m = max(0.0, odo_m - self._board_odo_m - self._surely_forward_m())
         if rolled_m:
@@ -330,7 +330,7 @@ class UkfEstimator:
                 reach_m = self._top_mps * max(0.0, t_s - self._board_t_s) + 0.01
                 excess_m = odo_m - self._board_odo_m - reach_m
                 if excess_m > 0.0:
-                    rolled_m, run_m = excess_m, 0.0
+                    rolled_m, run_m, burst = excess_m, 0.0, True
                     self._rolled_m += excess_m
                     v_mps = min(v_mps, self._top_mps)
         # the duty the train was driven at throughout the interval: none when the board braked or drove at zero duty
@@ -342,8 +342,11 @@ class UkfEstimator:
             self._envelope.reset()
         else:
             step = self._drifted(t_s, v_mps, duty_pct if "mode" in report else None)
-        if rolled_m or step is not None:
+        if burst or step is not None:
             self._motor.reset()   # the speeds it learnt from may hold some of the wheel's spin or slide
+        elif rolled_m:
+            # counts while braked to a stand tell nothing of the motor, nor of the wheel before: the window ends there
+            self._motor.observe(t_s, 0.0, 0, False)
         else:
             self._motor.observe(t_s, v_mps / (1.0 + (self.scale_error or 0.0)), duty_pct, self._scale_settled())
         self._board_before = None if rolled_m or step is not None or self._board_t_s is None else (
