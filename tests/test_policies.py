@@ -62,24 +62,26 @@ def test_the_authority_runs_from_the_front_most_head_to_the_rear_most_tail():
         moving_block_distance_m(LAYOUT.length_m - PROFILE.length_m - 0.3, 0.01, 0.0, AuthorityParams()))
 
 
-def test_a_leader_may_roll_back_once_stopped_and_the_allowance_grows_smoothly_as_it_slows():
+def test_a_leader_may_roll_back_once_stopped_and_the_end_behind_it_never_steps_back_as_it_brakes():
     """Standing: it may roll back at rollback_mps over its data's age and the command's time to live. Moving, it
-    must stop first (at best at its emergency rate), going forward meanwhile: above about 0.3 m/s nothing is left, and
-    behind a leader braking to a stand the end of authority steps back by no more than 2 mm (no trip for its
-    follower; a step of the whole allowance, 4 cm, tripped 24 followers in a 60 s run of 5 trains)."""
+    first goes forward the way it takes to stop at its emergency rate: above about 0.35 m/s nothing is left. Behind a
+    leader braking to a stand at its service or its emergency rate, the end of authority never steps back: a step
+    under a follower riding its braking curve trips it, and the trip then steps back the end behind it (counting the
+    leader's stopping time as roll time too made 125 trips in 20 s of 50 trains in a queue; without it, 33)."""
     p = AuthorityParams()
     beta_e = PROFILE.beta_e_mps2
     assert rollback_allowance_m(0.05, p, 0.0, beta_e) == pytest.approx(p.rollback_mps * (0.05 + p.ttl_s))
     assert rollback_allowance_m(0.05, p, 0.35, beta_e) == 0.0
-    assert rollback_allowance_m(2.0, p, 0.35, beta_e) == pytest.approx(rollback_allowance_m(2.0, p))   # stale
-    s_m, v_mps, dt_s, ends = 0.0, 0.5, 0.01, []
-    while v_mps > 0.0:                                   # the leader brakes at its service rate to a stand
-        ends.append(s_m - rollback_allowance_m(0.05, p, v_mps, beta_e))
-        s_m += v_mps * dt_s
-        v_mps = max(0.0, v_mps - PROFILE.beta_s_mps2 * dt_s)
-    ends.append(s_m - rollback_allowance_m(0.05, p, 0.0, beta_e))
-    furthest = [max(ends[:k + 1]) for k in range(len(ends))]
-    assert max(f - e for f, e in zip(furthest, ends)) < 0.002   # below 0.07 m/s it grows a little faster: 1-2 mm
+    assert rollback_allowance_m(2.0, p, 0.4, beta_e) == pytest.approx(rollback_allowance_m(2.0, p))   # stale
+    for beta_mps2 in (PROFILE.beta_s_mps2, beta_e):
+        s_m, v_mps, dt_s, ends = 0.0, 0.5, 0.01, []
+        while v_mps > 0.0:                                   # the leader brakes at this rate to a stand
+            ends.append(s_m - rollback_allowance_m(0.05, p, v_mps, beta_e))
+            v_next = max(0.0, v_mps - beta_mps2 * dt_s)
+            s_m += 0.5 * (v_mps + v_next) * dt_s
+            v_mps = v_next
+        ends.append(s_m - rollback_allowance_m(0.05, p, 0.0, beta_e))
+        assert all(b >= a - 1e-12 for a, b in zip(ends, ends[1:])), beta_mps2
 
 
 def test_moving_block_alone_on_a_loop_is_limited_by_its_own_tail():

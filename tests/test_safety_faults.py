@@ -320,6 +320,16 @@ def test_a_wheel_that_spins_or_slides_gradually_is_caught_by_the_speed_envelope(
     assert violations(summary) == [] and summary["stranded"] == 0, summary
 
 
+def test_a_wheel_spinning_inside_the_envelopes_band_is_caught_by_the_median_of_the_fixes():
+    """T3's wheel spins 1.12x at 0.3-0.45 m/s, inside what the speed envelope allows (its learnt band, its share and
+    its 0.02 m/s together), and its estimate runs 60-97 mm ahead with a 5 mm sigma. On lego_oval the median of 8 IPS
+    fixes stayed 50-68 mm off, under its 4 sigma of 88 mm, and T2 stopped 26 mm into the margin behind T3; the median
+    of 16 sees it."""
+    sim = _run_faulted("lego_oval", 6, 69, 60.0, "encoder_scale:at_s=12.3,duration_s=6.603,factor=1.12,train=T3")
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and summary["stranded"] == 0, summary
+
+
 @pytest.mark.parametrize("layout,trains,seed,fault", [
     # T6 at 0.59 m/s under an authority that ends 0.1 m behind T5's tail: its wheel reads 0.71x from now on, so the
     # authority its board holds, in odometer units, reaches 0.05 m past that tail

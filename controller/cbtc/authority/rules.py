@@ -38,18 +38,18 @@ def combined_sigma_m(sigma_follower_m: float, sigma_leader_m: float) -> float:
 
 def rollback_allowance_m(leader_age_s: float, p: AuthorityParams, leader_v_mps: float = None,
                          leader_beta_e_mps2: float = None) -> float:
-    """How far (m) behind its last-seen position a train whose data is `leader_age_s` old may be. Any train may stop
-    and roll back (a slope its brakes do not hold) before the follower's command expires, over the data's age plus
-    the command's time to live: moving at `leader_v_mps` when last seen, it first stops (at best at its emergency
-    rate), and the way it still goes forward meanwhile is taken off. So the allowance grows smoothly as a train
-    slows, and an end of authority behind it never steps back. Once its data is stale it may also have been moved by
-    hand at `rollback_mps` (None for the speed: that rule alone)."""
+    """How far (m) behind its last-seen position a train whose data is `leader_age_s` old may be. Any train may roll
+    back (a slope its brakes do not hold) at `rollback_mps` over the data's age plus the command's time to live; one
+    moving at `leader_v_mps` when last seen first goes forward at least the way it takes to stop at its emergency
+    rate, which is taken off. Its stopping time is not: as a train ahead brakes at up to its emergency rate, its
+    position grows at least as fast as this allowance, so an end of authority behind it never steps back (a follower
+    riding its braking curve would trip). Once its data is stale it may also have been moved by hand at
+    `rollback_mps` (None for the speed: that rule alone)."""
     stale_m = p.rollback_mps * max(0.0, leader_age_s - p.stale_after_s)
     if leader_v_mps is None:
         return stale_m
     v_mps = max(0.0, leader_v_mps)
-    roll_s = max(0.0, leader_age_s) + p.ttl_s - v_mps / leader_beta_e_mps2
-    roll_m = p.rollback_mps * roll_s - v_mps * v_mps / (2.0 * leader_beta_e_mps2) if roll_s > 0.0 else 0.0
+    roll_m = p.rollback_mps * (max(0.0, leader_age_s) + p.ttl_s) - v_mps * v_mps / (2.0 * leader_beta_e_mps2)
     return max(stale_m, roll_m)
 
 

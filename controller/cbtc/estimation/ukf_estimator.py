@@ -61,6 +61,8 @@ class UkfParams:
     rfid_poll_s: float = 0.02         # the onboard loop polls the reader once per period
     gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
     relocate_after: int = 8           # gated IPS fixes looked at together: where enough agree, the sensors disagree
+    bias_fixes: int = 16              # IPS fixes whose innovations' median tells a bias of the wheel (a median of 8
+    #                                   missed a wheel spinning 1.12x that put the estimate 6-10 cm ahead)
     locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
     history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
     step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
@@ -555,7 +557,7 @@ class UkfEstimator:
             fix_s_m = self.layout.project(*event.data)
             s_m, d_m = float(f.mean[S]), float(f.mean[D])
             new.innovations = (state.innovations + (circular_offset_m(fix_s_m, s_m, self.layout.loop_length_m),))[
-                -self.params.relocate_after:]
+                -max(self.params.relocate_after, self.params.bias_fixes):]
             # while the sensors disagree the IPS is as suspect as the wheel: a fix far from the wheel's position is
             # not taken, however wide the position has grown (a roll, an open scale), or it would take the filter
             # over to the fixes' story and out of the bounds that cover the wheel's
@@ -610,7 +612,8 @@ class UkfEstimator:
         return abs(bias_m) <= 2.0 * sigma_m and abs(bias_m - offset_m) > 4.0 * sigma_m
 
     def _ips_bias(self, innovations):
-        """(median, its 1-sigma) of the newest IPS fixes' innovations (m); None while fewer than relocate_after."""
+        """(median, its 1-sigma) of the newest IPS fixes' innovations (m, up to bias_fixes of them); None while fewer
+        than relocate_after."""
         if len(innovations) < self.params.relocate_after:
             return None
         return (statistics.median(innovations),
