@@ -61,8 +61,8 @@ class UkfParams:
     rfid_poll_s: float = 0.02         # the onboard loop polls the reader once per period
     gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
     relocate_after: int = 8           # gated IPS fixes looked at together: where enough agree, the sensors disagree
-    bias_fixes: int = 16              # IPS fixes whose innovations' median tells a bias of the wheel (a median of 8
-    #                                   missed a wheel spinning 1.12x that put the estimate 6-10 cm ahead)
+    bias_fixes: int = 16              # newest IPS fixes whose innovations' median tells a bias of the wheel (from
+    #                                   relocate_after of them on): a spin inside the speed envelope's band shows there
     locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
     history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
     step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
