@@ -1,6 +1,7 @@
-"""`cbtc bench latency|sim|fusion|controller|memory|startup|all`: report -> command round trips through a real MQTT
-broker and the controller's compute time (experiments/latency.py says what each figure measures); simulation speed,
-the filter's update time, memory growth and start-up, each beside its reference (experiments/speed.py)."""
+"""`cbtc bench latency|sim|fusion|controller|memory|build|startup|all`: report -> command round trips through a real
+MQTT broker and the controller's compute time (experiments/latency.py says what each figure measures); simulation
+speed, the filter's update time, memory growth, the compiled build and start-up, each beside its reference
+(experiments/speed.py)."""
 
 import argparse
 import sys
@@ -18,6 +19,7 @@ EXAMPLES = (
     "cbtc bench memory --trains 2 --duration 20",
     "cbtc bench all --duration 2 --controller-duration 1 --memory-duration 10 --json",
     "cbtc bench startup --runs 1",
+    "cbtc bench build --duration 5",
 )
 
 
@@ -84,6 +86,11 @@ def register(sub):
                        help="simulated seconds of the memory run (default 3600: an hour)")
     every.add_argument("--seed", type=arg_types.seed, default=0)
     every.set_defaults(func=run_all)
+    build = _speed_parser(bench_sub, "build", "the compiled build beside its Python source (CBTC_PURE=1)")
+    build.add_argument("--duration", type=arg_types.seconds, default=10.0,
+                       help="simulated seconds of the simulation and of the zone's replay (default 10)")
+    build.add_argument("--seed", type=arg_types.seed, default=0)
+    build.set_defaults(func=run_build)
     start = _speed_parser(bench_sub, "startup", "wall time and memory of commands that do little, beside python")
     start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")
     start.set_defaults(func=run_startup)
@@ -112,9 +119,13 @@ def run_latency(args):
 
 
 def _machine() -> dict:
+    """Where the figures were measured: cores, Python, and how many cbtc modules ran compiled (0: plain Python)."""
     import os
     import platform
-    return {"cores": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()}
+
+    import cbtc
+    return {"cores": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine(),
+            "compiled_modules": len(cbtc.compiled_modules())}
 
 
 def _emit(args, name, figures, printer):
@@ -211,6 +222,29 @@ def run_all(args):
     _print_memory(out["memory"])
     _print_startup(out["startup"], 5)
     return 0
+
+
+def run_build(args):
+    from cbtc.experiments import speed
+    if shown(args):
+        print(f"bench build: four fresh processes in turn, {args.duration:g} simulated s each", file=sys.stderr,
+              flush=True)
+    row = speed.build_speed(args.duration, args.seed)
+    return _emit(args, "build", row, _print_build)
+
+
+def _print_build(row):
+    if not row["compiled_modules"]:
+        print("this install is plain Python (an editable install, or no C compiler at install): nothing to compare; "
+              "`pip install .` with a C compiler builds the compiled modules")
+        return
+    print(f"compiled build ({row['compiled_modules']} modules) beside its Python source (CBTC_PURE=1):")
+    print(f"  simulation, {row['sim_trains']} trains on {row['sim_layout']}: {row['sim_real_time_factor']}x real time, "
+          f"source {row['pure_sim_real_time_factor']}x: {row['sim_speedup']}x faster; the same simulation: "
+          f"{'yes' if row['same_simulation'] else 'NO'}")
+    print(f"  zone, {row['zone_trains']} trains: {row['zone_us_per_report']} us a report, source "
+          f"{row['pure_zone_us_per_report']} us: {row['zone_speedup']}x faster; the same commands: "
+          f"{'yes' if row['same_commands'] else 'NO'}")
 
 
 def run_startup(args):

@@ -12,11 +12,15 @@
   the same reports only decoded and authenticated.
 - **memory**: how a simulation's resident memory grows per simulated hour (6 trains), beside the same run keeping
   every sample, each in a fresh process.
+- **build**: the compiled build (setup.py) beside its own Python source (CBTC_PURE=1), each in a fresh process in
+  turn: a simulation's real-time factor (11 trains on lego_oval) and a zone's time per report (50 trains), and whether
+  the two ran the same simulation.
 - **startup**: wall time and peak resident memory of commands that do little (`cbtc --help`, a command's `--help`)
   beside `python -c pass`.
 """
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -180,6 +184,39 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
     return {"trains": n_trains, "layout": layout.name, "reports": len(heard), "commands": client.published,
             "zone_us_per_report": round(1e6 * zone_s / n, 1), "decode_us_per_report": round(1e6 * wire_s / n, 1),
             "zone_over_decode": round(zone_s / wire_s, 2) if wire_s else None}
+
+
+def _in_build(pure: bool, argv) -> dict:
+    """The JSON a `cbtc bench` run prints, run in a fresh process of the compiled build or of its source."""
+    env = dict(os.environ, CBTC_PURE="1" if pure else "0")
+    out = subprocess.run([sys.executable, "-m", "cbtc.cli", "bench", *argv, "--json"], env=env, capture_output=True,
+                         text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def build_speed(duration_s: float = 10.0, seed: int = 0) -> dict:
+    """The compiled build beside its source: a simulation's real-time factor (11 trains on lego_oval) and a zone's time
+    per report (50 trains), each build in a fresh process in turn; {"compiled_modules": 0} alone for a plain install."""
+    sim_argv = ["sim", "--layout", "lego_oval", "--trains", "11", "--duration", str(duration_s), "--seed", str(seed)]
+    zone_argv = ["controller", "--trains", "50", "--duration", str(duration_s), "--seed", str(seed)]
+    compiled_sim = _in_build(False, sim_argv)
+    modules = compiled_sim["machine"]["compiled_modules"]
+    if not modules:
+        return {"compiled_modules": 0}
+    pure_sim = _in_build(True, sim_argv)
+    compiled_zone, pure_zone = _in_build(False, zone_argv), _in_build(True, zone_argv)
+    fast, slow = compiled_sim["sim"][0], pure_sim["sim"][0]
+    same = ("collisions", "authority_overruns", "emergency_trips", "reports_per_train_s", "commands_per_report")
+    zone_fast, zone_slow = compiled_zone["controller"][0], pure_zone["controller"][0]
+    return {"compiled_modules": modules,
+            "sim_layout": fast["layout"], "sim_trains": fast["trains"],
+            "sim_real_time_factor": fast["real_time_factor"], "pure_sim_real_time_factor": slow["real_time_factor"],
+            "sim_speedup": round(fast["real_time_factor"] / slow["real_time_factor"], 2),
+            "same_simulation": all(fast[k] == slow[k] for k in same),
+            "zone_trains": zone_fast["trains"], "zone_us_per_report": zone_fast["zone_us_per_report"],
+            "pure_zone_us_per_report": zone_slow["zone_us_per_report"],
+            "zone_speedup": round(zone_slow["zone_us_per_report"] / zone_fast["zone_us_per_report"], 2),
+            "same_commands": zone_fast["commands"] == zone_slow["commands"]}
 
 
 def _resident_mib() -> float:
