@@ -167,3 +167,9 @@ def test_an_authority_reaches_no_further_than_the_horizon_and_says_so():
     cut = within_horizon(long, PROFILE, params)
     assert cut.distance_m == reach_m and cut.reason == "horizon (train A's tail further)"
     assert long.distance_m == 4.0
+
+
+def test_cutting_an_authority_keeps_every_other_field():
+    values = {f.name: f"value {i}" for i, f in enumerate(dataclasses.fields(Authority))}
+    auth = Authority(**values)
+    assert auth.cut_to(1.5, "horizon") == dataclasses.replace(auth, distance_m=1.5, reason="horizon")

@@ -10,7 +10,7 @@ latency do not move it.
 """
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from cbtc.railway.physics import braking_distance_m
 
@@ -110,7 +110,7 @@ def within_horizon(auth, profile, p: AuthorityParams):
     reach_m = horizon_m(profile, p)
     if auth.distance_m <= reach_m:
         return auth
-    return replace(auth, distance_m=reach_m, reason=f"horizon ({auth.reason} further)")
+    return auth.cut_to(reach_m, f"horizon ({auth.reason} further)")
 
 
 def minimum_gap_m(v_mps: float, beta_s_mps2: float, margin_m: float) -> float:

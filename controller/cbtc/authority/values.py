@@ -51,3 +51,9 @@ class Authority:
     sigma_m: float = None             # combined 1-sigma of both estimates taken off it (k_sigma of them)
     gap_est_m: float = None           # the estimated gap to the train ahead (m)
     gap_alarm: bool = None            # the train's own ranging disagrees with that gap; None: no fresh ranging
+
+    def cut_to(self, distance_m: float, reason: str) -> "Authority":
+        """This authority with its distance and reason changed, the rest kept (dataclasses.replace's result, made at
+        a quarter of its cost: a zone cuts most authorities of free-running trains to their horizon)."""
+        return Authority(distance_m, self.v_cap_mps, self.acc_mps2, self.dec_mps2, self.mode, reason,
+                         self.leader_data_t_s, self.sigma_m, self.gap_est_m, self.gap_alarm)
