@@ -149,8 +149,10 @@ def run_sim(args):
 
 
 def _print_sim(rows):
-    print(f"simulation speed ({_machine()['cores']} cores): simulated seconds per wall second, the full run beside the "
-          f"same world with a do-nothing controller")
+    machine = _machine()
+    build = f"{machine['compiled_modules']} modules compiled" if machine["compiled_modules"] else "plain Python"
+    print(f"simulation speed ({machine['cores']} cores, {build}): simulated seconds per wall second, the full run "
+          f"beside the same world with a do-nothing controller")
     print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("simulated_s", "simulated s"),
                               ("wall_s", "wall s"), ("real_time_factor", "x real time"),
                               ("reference_real_time_factor", "x, no controller"),
@@ -205,14 +207,14 @@ def run_all(args):
     """Every figure the simulation-speed work is judged by, measured one after the other in one process's run."""
     from cbtc.experiments import speed
     with steps("bench all", len(speed.SIM_CASES) + 5, shown(args)) as step:
-        out = {"machine": _machine(),
-               "sim": [step(f"sim, {n} trains on {layout}", speed.sim_speed, layout, n, args.duration, args.seed)
+        out = {"sim": [step(f"sim, {n} trains on {layout}", speed.sim_speed, layout, n, args.duration, args.seed)
                        for layout, n in speed.SIM_CASES],
                "fusion": step("fusion", speed.fusion_speed, 50, 40, args.seed),
                "controller": [step(f"controller, {n} trains", speed.controller_speed, n, args.controller_duration,
                                    args.seed) for n in (11, 50)],
                "memory": step("memory", speed.memory_growth, 6, args.memory_duration, args.seed),
                "startup": step("start-up", speed.startup, 5)}
+    out["machine"] = _machine()   # after the measures: the modules they ran are loaded, compiled or not
     if args.json:
         print_json(out)
         return 0
