@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from cbtc import protocol
 from cbtc.protocol import wire
 
 KEY = bytes(range(16))
@@ -23,10 +24,11 @@ def report(**changes):
 def test_hmac_matches_the_standard_library():
     """The board's hashlib-only HMAC (MicroPython has no hmac module) and the one CPython uses give the standard
     library's digest, messages in parts or whole, keys shorter and longer than a block."""
-    for key in (b"k", KEY, b"x" * 64, b"y" * 100):
+    assert wire._C_HMAC is protocol._hmac_sha256   # the controller's, from SHA-256 states kept per key
+    for key in (b"", b"k", KEY, b"x" * 64, b"w" * 65, b"y" * 100):
         for msg in (b"", b"abc", b"z" * 1000):
             want = hmac.new(key, msg, hashlib.sha256).digest()
-            assert wire.hmac_sha256(key, msg) == want
+            assert wire.hmac_sha256(key, msg) == want and wire.hmac_sha256(key, msg) == want   # the kept states too
             assert wire.hmac_sha256_hashlib(key, msg[:2], msg[2:]) == want
             assert wire.hmac_sha256(key, msg[:2], msg[2:]) == want
 
