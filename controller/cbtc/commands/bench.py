@@ -262,8 +262,9 @@ def _print_startup(rows, runs):
 
 
 def _print(f):
+    build = f"{f['compiled_modules']} modules compiled" if f["compiled_modules"] else "plain Python"
     print(f"{f['trains']} trains on {f['layout']} through {f['broker']}, reports at {f['report_hz']} Hz a train, "
-          f"controller cycle {f['controller_cycle_hz']} Hz, {f['duration_s']} s measured")
+          f"controller cycle {f['controller_cycle_hz']} Hz, {f['duration_s']} s measured; the zone's build: {build}")
     rows = [("transport_rtt_ms", "transport round trip (uplink + downlink)"),
             ("uplink_ms", "  report published -> controller handles it"),
             ("downlink_ms", "  command published -> train handles it"),

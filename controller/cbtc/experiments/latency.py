@@ -35,6 +35,7 @@ import time
 
 import numpy as np
 
+import cbtc
 from cbtc.bus.broker_config import MosquittoProcess
 from cbtc.bus.clients import start_bus
 from cbtc.errors import BusError
@@ -234,6 +235,7 @@ def run_latency(args) -> dict:
     result.update({"broker": "embedded mosquitto" if broker is not None else url, "trains": args.trains,
                    "layout": layout.name, "duration_s": args.duration, "rate_hz": args.rate,
                    "mqtt_client": getattr(args, "mqtt_client", "lean"),
+                   "compiled_modules": len(cbtc.compiled_modules()),   # the zone's build (0: plain Python)
                    # measured: the rate asked, or 50 Hz from a followed train within the controller's report budget
                    "report_hz": round(result["reports_published"] / (args.duration * args.trains), 1),
                    "controller_cycle_hz": round(1.0 / config.cycle_s, 3),
