@@ -128,6 +128,10 @@ def _machine() -> dict:
             "compiled_modules": len(cbtc.compiled_modules())}
 
 
+def _build_words(compiled_modules: int) -> str:
+    return f"{compiled_modules} modules compiled" if compiled_modules else "plain Python"
+
+
 def _emit(args, name, figures, printer):
     """Print one measure's figures: as JSON with the machine under `--json`, else by `printer`."""
     if args.json:
@@ -150,9 +154,8 @@ def run_sim(args):
 
 def _print_sim(rows):
     machine = _machine()
-    build = f"{machine['compiled_modules']} modules compiled" if machine["compiled_modules"] else "plain Python"
-    print(f"simulation speed ({machine['cores']} cores, {build}): simulated seconds per wall second, the full run "
-          f"beside the same world with a do-nothing controller")
+    print(f"simulation speed ({machine['cores']} cores, {_build_words(machine['compiled_modules'])}): simulated "
+          f"seconds per wall second, the full run beside the same world with a do-nothing controller")
     print(format_table(rows, [("layout", "layout"), ("trains", "trains"), ("simulated_s", "simulated s"),
                               ("wall_s", "wall s"), ("real_time_factor", "x real time"),
                               ("reference_real_time_factor", "x, no controller"),
@@ -262,9 +265,9 @@ def _print_startup(rows, runs):
 
 
 def _print(f):
-    build = f"{f['compiled_modules']} modules compiled" if f["compiled_modules"] else "plain Python"
     print(f"{f['trains']} trains on {f['layout']} through {f['broker']}, reports at {f['report_hz']} Hz a train, "
-          f"controller cycle {f['controller_cycle_hz']} Hz, {f['duration_s']} s measured; the zone's build: {build}")
+          f"controller cycle {f['controller_cycle_hz']} Hz, {f['duration_s']} s measured; the zone's build: "
+          f"{_build_words(f['compiled_modules'])}")
     rows = [("transport_rtt_ms", "transport round trip (uplink + downlink)"),
             ("uplink_ms", "  report published -> controller handles it"),
             ("downlink_ms", "  command published -> train handles it"),
