@@ -51,6 +51,7 @@ class Recorder:
         self._error = [[0, 0.0, 0.0] for _ in range(n)]      # estimate less truth: count, sum of squares, worst
         self._window = [deque() for _ in range(n)]            # (t_s, travelled_m) over the last STRANDED_S
         self._ever_constrained = [False] * n
+        self._reach_m = [following_reach_m(t.profile) for t in sim.trains]   # within it the train ahead limits one
         self.collisions = [0] * n
         self.overruns = [0] * n
         self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or span
@@ -124,7 +125,8 @@ class Recorder:
         if keep:
             self._t_s.append(now_s)
         heads = [t.head_s for t in trains]
-        spans = [(t.train_id, t.head_s, t.tail_s) for t in trains]
+        tails = [t.tail_s for t in trains]
+        spans = [(t.train_id, head, tail) for t, head, tail in zip(trains, heads, tails)]
         ahead = train_ahead(layout, heads)
         protected = protected_all_m(self.sim.policy, layout, spans)
         lap_m = layout.length_m if layout.closed else None
@@ -134,7 +136,7 @@ class Recorder:
             moved = travelled_m > self._travelled_before[i] + 1e-4   # forward since the last sample
             self._travelled_before[i] = travelled_m
             any_moving = any_moving or train.v_mps > 0.0
-            self._granted(i, train, now_s, heads, ahead)
+            self._granted(i, train, now_s, heads, tails, ahead)
             crossings = self._crossings[i]
             if lap_m is not None and travelled_m >= lap_m * (len(crossings) + 1):
                 crossings.append(now_s)
@@ -145,7 +147,7 @@ class Recorder:
             gap_m = None
             if i in ahead:
                 j = ahead[i]
-                tail_s = trains[j].tail_s
+                tail_s = tails[j]
                 inside = head_inside(layout, heads[i], tail_s, trains[j].profile.length_m)
                 if inside and not self._colliding[i] and not first:
                     if moved:
@@ -159,7 +161,7 @@ class Recorder:
                 stats[1] += gap_m
                 stats[2] = min(stats[2], gap_m)
             state = self.sim.zc.trains[train.train_id]
-            constrained = state.safe_m is not None and state.safe_m < following_reach_m(train.profile)
+            constrained = state.safe_m is not None and state.safe_m < self._reach_m[i]
             self._ever_constrained[i] = self._ever_constrained[i] or constrained
             if gap_m is not None and constrained:
                 self._following[i][0] += 1
@@ -195,11 +197,11 @@ class Recorder:
         if any_moving:
             self._moving_last_s = now_s
 
-    def _granted(self, i, train, now_s, heads, ahead):
+    def _granted(self, i, train, now_s, heads, tails, ahead):
         """True room ahead of train i now, and how far the authority its board holds reaches beyond it."""
         layout = self.layout
         if i in ahead:
-            tail_s = self.sim.trains[ahead[i]].tail_s
+            tail_s = tails[ahead[i]]
             room_m = layout.ahead_m(heads[i], tail_s)
             if head_inside(layout, heads[i], tail_s, self.sim.trains[ahead[i]].profile.length_m):
                 room_m = -layout.ahead_m(tail_s, heads[i])
