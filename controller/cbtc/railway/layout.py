@@ -56,10 +56,9 @@ class Layout:
         self.ips = ips
         self._tags_by_uid = {t.uid: t for t in self.tags}
         self._stations_by_name = {st.name: st for st in self.stations}
-
-    def wrap(self, s_m):
-        """Closed: `s_m` modulo the length; open: clipped to [0, length]. Float or numpy array."""
-        return self.path.wrap(s_m)
+        # wrap(s_m): closed, `s_m` modulo the length; open, clipped to [0, length]; float or numpy array. The path's
+        # own method, called directly: every report and every simulated tick wraps positions several times
+        self.wrap = path.wrap
 
     def ahead_m(self, s_from_m, s_to_m):
         """Distance (m) going forward from `s_from_m` to `s_to_m`: in [0, length) on a loop, to - from on a line."""

@@ -107,15 +107,15 @@ class TrainState:
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
         self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
-        self._memo_key = None        # (estimator, reports_taken) the values in _memo were made for
+        self._memo_estimator = None  # the estimator and the count of reports taken the values in _memo were made for
+        self._memo_taken = -1
         self._memo = {}              # what the zone asks of this train per report: its estimate, picture, scale bounds
 
     def _per_report(self):
         """The values kept for the newest report: they change only with a report taken or a new estimator, so the
         train's own command and its follower's share them."""
-        key = (self.estimator, self.reports_taken)
-        if self._memo_key != key:
-            self._memo_key, self._memo = key, {}
+        if self._memo_taken != self.reports_taken or self._memo_estimator is not self.estimator:
+            self._memo_estimator, self._memo_taken, self._memo = self.estimator, self.reports_taken, {}
         return self._memo
 
     def newest_estimate(self):
