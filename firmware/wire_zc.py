@@ -124,7 +124,7 @@ def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 
         stop_mm = eoa_mm
     ints = (boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm, rpt_ms, odo_mm_per_m)
     topic = topic_command(train_id)
-    if _plain_id(train_id) and all(type(value) is int for value in ints):
+    if _plain_id(train_id) and set(map(type, ints)) == _INT_ONLY:
         # the bytes json.dumps writes for these types (an int's repr; an id of letters, digits, '_' and '-'), made
         # at a fifth of its cost: a zone sends a command for most reports
         body = _COMMAND_JSON % ((VERSION, train_id) + ints)
@@ -141,10 +141,19 @@ _COMMAND_KEYS = ("boot", "seq", "sid", "rseq", "v_mmps", "eoa_mm", "ttl_ms", "ac
 _COMMAND_JSON = '{"v":%d,"k":"cmd","id":"%s",' + ",".join('"%s":%%d' % name for name in _COMMAND_KEYS) + "}"
 
 
+_INT_ONLY = {int}   # the types of a command's fields when every one is an int (a bool is not)
+_PLAIN_IDS = set()  # ids found plain already: a zone commands the same few trains at every report
+
+
 def _plain_id(train_id):
     """True for an id check_train_id allows (letters, digits, '_' and '-'): JSON writes it unescaped."""
+    if type(train_id) is str and train_id in _PLAIN_IDS:
+        return True
     try:
         wire.check_train_id(train_id)
     except WireError:
         return False
+    if len(_PLAIN_IDS) >= 1024:
+        _PLAIN_IDS.clear()
+    _PLAIN_IDS.add(train_id)
     return True

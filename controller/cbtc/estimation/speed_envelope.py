@@ -77,13 +77,15 @@ class SpeedEnvelope:
             if None in duties or dt_s > MOTOR_GAP_S:
                 # the duty is not known, or reports too far apart for their duties to tell what the motor did in
                 # between (the speed loop runs every 20 ms): traction and the brake alone
-                low_fn, high_fn = self._limits(0, 100)
+                low, high = self._limits(0, 100)
             else:
-                low_fn, high_fn = self._limits(min(duties), max(duties))
+                low, high = self._limits(min(duties), max(duties))
             for anchor in self._anchors:
                 if anchor[1] is not None:
-                    anchor[1] = max(0.0, low_fn(anchor[1], dt_s))
-                anchor[2] = high_fn(anchor[2], dt_s)
+                    v0 = anchor[1]
+                    anchor[1] = max(0.0, ride_mps(v0, dt_s, *low) if len(low) > 1 else v0 + low[0] * dt_s)
+                v0 = anchor[2]
+                anchor[2] = ride_mps(v0, dt_s, *high) if len(high) > 1 else v0 + high[0] * dt_s
                 if t_s - anchor[0] < JUDGE_S:
                     continue
                 excess = v_mps - anchor[2]
@@ -101,15 +103,15 @@ class SpeedEnvelope:
         return worst
 
     def _limits(self, d_low_pct, d_high_pct):
-        """(slowest, fastest) speed functions (v0, dt) over an interval between reports driven at these duties."""
+        """(slowest, fastest) ways a speed can go over an interval between reports driven at these duties: each the
+        arguments of ride_mps after (v0, dt), or (rate m/s^2,) for a speed changing at a constant rate."""
         p, u = self.profile, self.motor_tol
         if d_low_pct > 0:
             # driven all along: the motor pulls towards its steady speed at the duty, within the tolerances
             v_noload_mps, g = p.v_noload_mps * self._gain, self._gain_tol
             v_low = d_low_pct / 100.0 * v_noload_mps * (1.0 - g) - p.friction_mps2 * (1.0 + u) * p.motor_tau_s
             v_high = d_high_pct / 100.0 * v_noload_mps * (1.0 + g) - p.friction_mps2 * (1.0 - u) * p.motor_tau_s
-            return (lambda v, dt: ride_mps(v, dt, v_low, p.motor_tau_s, p.accel_max_mps2 * (1.0 - u), p.beta_e_mps2),
-                    lambda v, dt: ride_mps(v, dt, v_high, p.motor_tau_s, p.accel_max_mps2, p.beta_e_mps2))
+            return ((v_low, p.motor_tau_s, p.accel_max_mps2 * (1.0 - u), p.beta_e_mps2),
+                    (v_high, p.motor_tau_s, p.accel_max_mps2, p.beta_e_mps2))
         # not driven at one end at least: braked, coasting or driven somewhere in between, as hard as traction allows
-        up_mps2 = p.accel_max_mps2 if d_high_pct > 0 else 0.0
-        return (lambda v, dt: v - p.beta_e_mps2 * dt, lambda v, dt: v + up_mps2 * dt)
+        return (-p.beta_e_mps2,), (p.accel_max_mps2 if d_high_pct > 0 else 0.0,)

@@ -107,20 +107,18 @@ class TrainState:
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
         self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
-        self._memo_estimator = None  # the estimator and the count of reports taken the values in _memo were made for
-        self._memo_taken = -1
-        self._memo = {}              # what the zone asks of this train per report: its estimate, picture, scale bounds
+        # what the zone asks of this train per report (its estimate, picture, scale bounds): they change only with a
+        # report taken or a new estimator, which empty it, so the train's own command and its follower's share them
+        self._memo = {}
 
-    def _per_report(self):
-        """The values kept for the newest report: they change only with a report taken or a new estimator, so the
-        train's own command and its follower's share them."""
-        if self._memo_taken != self.reports_taken or self._memo_estimator is not self.estimator:
-            self._memo_estimator, self._memo_taken, self._memo = self.estimator, self.reports_taken, {}
-        return self._memo
+    def took_report(self):
+        """A report was handed to its estimator: the values kept for the one before are gone."""
+        self.reports_taken += 1
+        self._memo = {}
 
     def newest_estimate(self):
         """The estimator's estimate at the newest report's sample time (None while unlocated), made once per report."""
-        memo = self._per_report()
+        memo = self._memo
         if "estimate" not in memo:
             memo["estimate"] = self.estimator.estimate(self.report_t_s)
         return memo["estimate"]
@@ -128,7 +126,7 @@ class TrainState:
     def picture(self):
         """The train as the zone sees it at its newest report (a TrainPicture; its estimate must exist), made once
         per report."""
-        memo = self._per_report()
+        memo = self._memo
         picture = memo.get("picture")
         if picture is None:
             est = self.newest_estimate()
@@ -139,7 +137,7 @@ class TrainState:
     def odometer_per_m_low(self, k_sigma):
         """The estimator's low bound of the encoder's scale at `k_sigma` (UkfEstimator.odometer_per_m_low), made once
         per report for each `k_sigma`."""
-        memo = self._per_report()
+        memo = self._memo
         low = memo.get(k_sigma)
         if low is None:
             low = memo[k_sigma] = self.estimator.odometer_per_m_low(k_sigma)
@@ -155,6 +153,7 @@ class TrainState:
     def relocate(self, estimator):
         """Forget where the train is and its odometer's frame: it gets no authority until `estimator` locates it."""
         self.estimator = estimator
+        self._memo = {}
         self.eoa_mm = None
         self.limit_s = None
         if self.on_change is not None:
@@ -329,7 +328,7 @@ class ZoneController:
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
         if state.odo_moved:
             state.still_since_s = state.report_t_s
-        state.reports_taken += 1
+        state.took_report()
         self._moved.add(state)
         if self.report_sink is not None:
             self._record(state, report, recv_s)
