@@ -162,9 +162,9 @@ def test_an_authority_reaches_no_further_than_the_horizon_and_says_so():
     reach_m = horizon_m(PROFILE, params)
     assert reach_m == pytest.approx(following_reach_m(PROFILE) + PROFILE.v_max_mps * params.ttl_s)
     short = Authority(0.3, PROFILE.v_max_mps, 0.5, 1.0, "free", "train A's tail")
-    assert within_horizon(short, PROFILE, params) is short
+    assert within_horizon(short, reach_m) is short
     long = dataclasses.replace(short, distance_m=4.0)
-    cut = within_horizon(long, PROFILE, params)
+    cut = within_horizon(long, reach_m)
     assert cut.distance_m == reach_m and cut.reason == "horizon (train A's tail further)"
     assert long.distance_m == 4.0
 

@@ -105,9 +105,9 @@ def horizon_m(profile, p: AuthorityParams) -> float:
     return following_reach_m(profile) + profile.v_max_mps * p.ttl_s
 
 
-def within_horizon(auth, profile, p: AuthorityParams):
-    """`auth` (an Authority) cut to the train's horizon_m, its reason saying so; unchanged when it is within."""
-    reach_m = horizon_m(profile, p)
+def within_horizon(auth, reach_m: float):
+    """`auth` (an Authority) cut to `reach_m`, the train's horizon_m, its reason saying so; unchanged when it is
+    within."""
     if auth.distance_m <= reach_m:
         return auth
     return auth.cut_to(reach_m, f"horizon ({auth.reason} further)")

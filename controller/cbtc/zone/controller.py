@@ -23,7 +23,14 @@ import math
 import random
 from dataclasses import dataclass, field, replace
 
-from cbtc.authority.rules import AuthorityParams, checked_gap_m, following_reach_m, scale_trusted, within_horizon
+from cbtc.authority.rules import (
+    AuthorityParams,
+    checked_gap_m,
+    following_reach_m,
+    horizon_m,
+    scale_trusted,
+    within_horizon,
+)
 from cbtc.authority.values import Situation, TrainPicture
 from cbtc.estimation.estimate import BoardClock, span_offsets_m
 from cbtc.firmware import obu
@@ -105,6 +112,8 @@ class TrainState:
         self.failures = 0            # exceptions in this train's handling: located afresh
         self.failures_said = set()   # the exception types already logged for it
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
+        self.reach_m = None          # its following reach and horizon (cbtc.authority.rules), set by the zone
+        self.horizon_m = None
         self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
         # what the zone asks of this train per report (its estimate, picture, scale bounds): they change only with a
@@ -201,8 +210,12 @@ class ZoneController:
                 raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
             for name in setup.stops:
                 layout.station(name)  # raises LayoutError naming the known stations
-            self.trains[setup.train_id] = TrainState(setup, estimator_factory(layout, setup.profile),
-                                                     rank=len(self.trains), on_change=self._moved.add)
+            state = TrainState(setup, estimator_factory(layout, setup.profile), rank=len(self.trains),
+                               on_change=self._moved.add)
+            # the profile and the parameters are fixed: the distances that follow from them, worked out once
+            state.reach_m = following_reach_m(setup.profile)
+            state.horizon_m = horizon_m(setup.profile, self.params)
+            self.trains[setup.train_id] = state
         self._unanswered = set(self.trains.values())
         self._unheard = len(self.trains)
         self.unknown_reports = 0
@@ -473,11 +486,11 @@ class ZoneController:
             if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
                 block_i, code = self.policy.code(sit)
                 sit = replace(sit, received_code=self.policy.codes.transmit(block_i, code))
-            auth = within_horizon(self.policy.authority(sit), state.setup.profile, self.params)
+            auth = within_horizon(self.policy.authority(sit), state.horizon_m)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
             stop_m = self._station_stop(state, now_s)
-            if leader is not None and safe_m < following_reach_m(state.setup.profile):
+            if leader is not None and safe_m < state.reach_m:
                 # this train is held by the one ahead: ask that one for fast reports, for a while
                 self._want_fast(leader, safe_m, now_s)
             state.limited_by = auth.reason
