@@ -41,15 +41,16 @@ class MovingBlockPolicy:
         self.takagi = takagi
 
     def usable_gap(self, sit: Situation):
-        """(distance_m, leader_v_mps, fields of the Authority that say what the distance rests on)."""
+        """(distance_m, leader_v_mps, the Authority's fields that say what the distance rests on: reason,
+        leader_data_t_s, sigma_m, gap_est_m, gap_alarm)."""
         layout, own, leader = sit.layout, sit.own, sit.leader
         if leader is None:
             # alone: its own tail is the train ahead on a loop; the end of the track on an open line
             gap_m = layout.length_m - own.profile.length_m - own.behind_m if layout.closed \
                 else layout.length_m - own.s_m
             gap_m -= own.ahead_m
-            why = {"reason": "own tail (alone on the loop)" if layout.closed else "end of the line",
-                   "sigma_m": own.sigma_s_m}
+            why = ("own tail (alone on the loop)" if layout.closed else "end of the line", None, own.sigma_s_m, None,
+                   None)
             return moving_block_distance_m(gap_m, own.sigma_s_m, 0.0, self.params), None, why
         # the train's front-most plausible head to the leader's rear-most plausible tail
         tail_s = layout.wrap(leader.s_m - leader.profile.length_m - leader.behind_m)
@@ -64,8 +65,8 @@ class MovingBlockPolicy:
         # extrapolated); the older that is, the more it may have rolled back: stale data shrinks the authority (and
         # the zone controller stops extending it at all after max_leader_age_s)
         age_s = sit.now_s - leader.data_t_s
-        why = {"reason": f"train {leader.train_id}'s tail" + (" (measured)" if used_m < gap_m else ""),
-               "leader_data_t_s": leader.data_t_s, "sigma_m": sigma_m, "gap_est_m": gap_m, "gap_alarm": alarm}
+        why = (f"train {leader.train_id}'s tail" + (" (measured)" if used_m < gap_m else ""), leader.data_t_s,
+               sigma_m, gap_m, alarm)
         return (moving_block_distance_m(used_m, own.sigma_s_m, leader.sigma_s_m, self.params, age_s, leader.v_mps,
                                         leader.profile.beta_e_mps2), leader.v_mps, why)
 
@@ -96,7 +97,7 @@ class MovingBlockPolicy:
                 mode = "departure"
         if self.takagi:
             acc = self._departure_acc(sit, mode, acc)
-        return Authority(distance_m, v_cap, acc, dec, mode, **why)
+        return Authority(distance_m, v_cap, acc, dec, mode, *why)
 
     @staticmethod
     def _departure_acc(sit, mode, acc):
