@@ -121,6 +121,11 @@ class OdometryEstimator:
         """Always: its state is a few floats checked as they come (same interface as UkfEstimator.healthy)."""
         return True
 
+    def position_m(self, now_s: float):
+        """`estimate(now_s).s_m` alone (None while unlocated), as UkfEstimator.position_m."""
+        est = self.estimate(now_s)
+        return None if est is None else est.s_m
+
     def estimate(self, now_s: float):
         if not self.localized or self._last is None:
             return None

@@ -756,8 +756,19 @@ class UkfEstimator:
             ahead_m, behind_m = max(ahead_m, state.tag_offset), max(behind_m, -state.tag_offset)
         if state.doubt is not None:
             ahead_m, behind_m = max(ahead_m, state.doubt[1]), max(behind_m, -state.doubt[0])
-        est = Estimate(s_m=float(self.layout.wrap(x[S] + x[V] * dt_s)), v_mps=float(x[V]),
+        est = Estimate(s_m=self._position_m(x, dt_s), v_mps=float(x[V]),
                        sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
                        data_t_s=newest_t_s + offset_s, ahead_m=ahead_m, behind_m=behind_m)
         self._estimate_memo = (state, now_s, offset_s, newest_t_s, est)
         return est
+
+    def position_m(self, now_s: float):
+        """`estimate(now_s).s_m` alone (None while unlocated): a simulation's recorder asks for it at every tick."""
+        state = self._newest
+        if state is None or self._clock is None:
+            return None
+        t_s, x, _P = state.snap
+        return self._position_m(x, (now_s - self._clock.offset_s) - t_s)
+
+    def _position_m(self, x, dt_s):
+        return float(self.layout.wrap(x[S] + x[V] * dt_s))

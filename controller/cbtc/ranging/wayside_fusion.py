@@ -32,6 +32,9 @@ class RangedEstimator:
     def estimate(self, now_s):
         return self._inner.estimate(now_s)
 
+    def position_m(self, now_s):
+        return self._inner.position_m(now_s)
+
     def on_report(self, report, board_clock):
         self._inner.on_report(report, board_clock)
         t_board_s = report["t_ms"] / 1000.0

@@ -173,11 +173,15 @@ class Recorder:
                 else:
                     self.rolled_onto[i] += 1
             self._overrun[i] = over
-            est = None
+            est = est_s_m = None
             if state.report is not None and state.estimator.localized:
-                est = state.estimator.estimate(now_s)
-            if est is not None and est.s_m == est.s_m:
-                err_m = circular_offset_m(est.s_m, heads[i], layout.loop_length_m)
+                if keep:   # its sigma is kept too
+                    est = state.estimator.estimate(now_s)
+                    est_s_m = None if est is None else est.s_m
+                else:
+                    est_s_m = state.estimator.position_m(now_s)
+            if est_s_m is not None and est_s_m == est_s_m:
+                err_m = circular_offset_m(est_s_m, heads[i], layout.loop_length_m)
                 stats = self._error[i]
                 stats[0] += 1
                 stats[1] += err_m * err_m
