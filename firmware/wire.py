@@ -115,7 +115,7 @@ def wrap_add(a, b):
 # --- authentication -------------------------------------------------------------------------------------------
 
 try:
-    from hmac import digest as _C_HMAC  # CPython: the C implementation; not on a board
+    from hmac import digest as _C_HMAC  # CPython: C's (the controller sets a faster one: cbtc.protocol); no board
 except ImportError:
     _C_HMAC = None
 
@@ -123,8 +123,8 @@ _PADS = {}   # key -> its two padded blocks (inner, outer): made once per key, a
 
 
 def hmac_sha256(key, *parts):
-    """HMAC-SHA256 (RFC 2104) with `key` (bytes) of the concatenated `parts` (bytes): CPython's own (in C) where
-    there is one, else hmac_sha256_hashlib."""
+    """HMAC-SHA256 (RFC 2104) with `key` (bytes) of the concatenated `parts` (bytes): `_C_HMAC` where there is one
+    (CPython's hmac.digest, or the controller's from cbtc.protocol), else hmac_sha256_hashlib."""
     if _C_HMAC is not None:
         return _C_HMAC(key, b"".join(parts), "sha256")
     return hmac_sha256_hashlib(key, *parts)

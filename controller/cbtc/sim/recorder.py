@@ -229,7 +229,7 @@ class Recorder:
             return False
         travel = [d for _t, d in self._window[i]]
         moved_m = max(travel) - min(travel)
-        return moved_m < 0.01 and self.room_m[i] > following_reach_m(train.profile) + self.sim.config.params.margin_m
+        return moved_m < 0.01 and self.room_m[i] > self._reach_m[i] + self.sim.config.params.margin_m
 
     # --- figures --------------------------------------------------------------------------------------------------
 
