@@ -196,7 +196,7 @@ def decode_sealed(key, topic, payload, kind, specs):
     if diff:
         raise AuthError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     try:
-        msg = json.loads(body)
+        msg = json.loads(body)   # on the controller, cbtc.protocol's json.loads: the same result, faster
     except ValueError:
         raise WireError("payload on %s is not JSON" % topic)
     if not isinstance(msg, dict):

@@ -12,6 +12,8 @@ import time
 class VirtualScheduler:
     """Discrete-event scheduler on a virtual clock that starts at `start_s` (seconds)."""
 
+    _waits = False   # whether `_wait_until` waits for a callback's time (wall-clock schedulers)
+
     def __init__(self, start_s: float = 0.0):
         self._now_s = float(start_s)
         self._queue = []
@@ -53,11 +55,14 @@ class VirtualScheduler:
     def run_until(self, end_s: float) -> None:
         """Run every callback due up to and including `end_s`, then set the clock to `end_s`."""
         self._stopped = False
-        while self._queue and self._queue[0][0] <= end_s and not self._stopped:
-            t_s, _, fn, args = heapq.heappop(self._queue)
+        queue, pop = self._queue, heapq.heappop
+        wait = self._wait_until if self._waits else None   # virtual time: no call per event
+        while queue and queue[0][0] <= end_s and not self._stopped:
+            t_s, _, fn, args = pop(queue)
             if fn is None:
                 continue
-            self._wait_until(t_s)
+            if wait is not None:
+                wait(t_s)
             self._now_s = t_s
             fn(*args)
         if not self._stopped:
@@ -73,6 +78,8 @@ class RealtimeScheduler(VirtualScheduler):
 
     `wake()` may be called from another thread to make a sleeping scheduler look at its queue again.
     """
+
+    _waits = True
 
     def __init__(self, start_s: float = 0.0, poll_s: float = 0.002):
         super().__init__(start_s)

@@ -41,23 +41,38 @@ class LinkProfile:
 
 
 class _Subscriptions(dict):
-    """A client's filter -> callback, telling the broker of every change: it keeps the clients of each topic."""
+    """A client's filter -> callback, telling the broker of every change: it keeps the clients of each topic, and
+    this client's callbacks of each topic (`callbacks`)."""
 
     def __init__(self, broker):
         super().__init__()
         self._broker = broker
+        self._callbacks = {}   # topic -> the callbacks of the filters matching it, each once, in subscription order
+
+    def callbacks(self, topic):
+        found = self._callbacks.get(topic)
+        if found is None:
+            if len(self._callbacks) >= 4096:   # a flood of topics: bounded all the same
+                self._callbacks.clear()
+            found = self._callbacks[topic] = tuple(
+                dict.fromkeys(cb for f, cb in self.items() if _matches(f, topic)))
+        return found
 
     def __setitem__(self, topic_filter, callback):
         super().__setitem__(topic_filter, callback)
-        self._broker._routes.clear()
+        self._changed()
 
     def pop(self, *args):
-        self._broker._routes.clear()
+        self._changed()
         return super().pop(*args)
 
     def clear(self):
-        self._broker._routes.clear()
+        self._changed()
         super().clear()
+
+    def _changed(self):
+        self._broker._routes.clear()
+        self._callbacks.clear()
 
 
 class MockClient(BusClient):
@@ -308,10 +323,7 @@ class MockBroker:
         if not client._connected or conn != client._conn or not self.running:
             self.stats["dropped_down"] += 1
             return
-        callbacks = []
-        for topic_filter, callback in client._subs.items():
-            if _matches(topic_filter, topic) and callback not in callbacks:
-                callbacks.append(callback)
+        callbacks = client._subs.callbacks(topic)
         if not callbacks:
             return
         self.stats["delivered"] += 1
