@@ -22,7 +22,7 @@ COMPILED = (
     "cbtc/railway/geometry.py", "cbtc/railway/layout.py", "cbtc/railway/physics.py", "cbtc/railway/balise.py",
     "cbtc/railway/train_profile.py", "cbtc/railway/ips_frame.py",
     "cbtc/sim/simulation.py", "cbtc/sim/virtual_train.py", "cbtc/sim/drivers.py", "cbtc/sim/truth.py",
-    "cbtc/sim/recorder.py", "cbtc/bus/mock_broker.py",
+    "cbtc/sim/recorder.py", "cbtc/bus/mock_broker.py", "cbtc/protocol/fast_wire.py",
     "firmware/wire.py", "firmware/wire_zc.py", "firmware/obu.py", "firmware/telegram.py",
 )
 

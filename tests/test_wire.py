@@ -7,8 +7,7 @@ import json
 
 import pytest
 
-from cbtc import protocol
-from cbtc.protocol import wire
+from cbtc.protocol import fast_wire, wire
 
 KEY = bytes(range(16))
 BOOT = 77
@@ -24,13 +23,39 @@ def report(**changes):
 def test_hmac_matches_the_standard_library():
     """The board's hashlib-only HMAC (MicroPython has no hmac module) and the one CPython uses give the standard
     library's digest, messages in parts or whole, keys shorter and longer than a block."""
-    assert wire._C_HMAC is protocol._hmac_sha256   # the controller's, from SHA-256 states kept per key
+    assert wire._C_HMAC is fast_wire.hmac_sha256   # the controller's, from SHA-256 states kept per key
     for key in (b"", b"k", KEY, b"x" * 64, b"w" * 65, b"y" * 100):
         for msg in (b"", b"abc", b"z" * 1000):
             want = hmac.new(key, msg, hashlib.sha256).digest()
             assert wire.hmac_sha256(key, msg) == want and wire.hmac_sha256(key, msg) == want   # the kept states too
             assert wire.hmac_sha256_hashlib(key, msg[:2], msg[2:]) == want
             assert wire.hmac_sha256(key, msg[:2], msg[2:]) == want
+
+
+def test_the_controllers_json_gives_the_standard_librarys_results():
+    """fast_wire's loads and dumps_compact, which wire uses here, give what json gives: the same objects, the same
+    text, the same errors, whatever the input."""
+    assert wire.json.loads is fast_wire.loads and wire.dumps_compact is fast_wire.dumps_compact
+    compact = json.JSONEncoder(separators=(",", ":")).encode
+    messages = [{"v": 1, "k": "rep", "id": "A", "ips": [1, -2, 3], "tags": [["04A1", 5, 6]], "flt": [], "x": None},
+                {"f": 1.5, "nan": float("nan"), "big": 2 ** 70, "t": True, "s": "caf\u00e9 \"q\"\n"}, [], "x", 3]
+    for msg in messages:
+        assert fast_wire.dumps_compact(msg) == compact(msg)
+    with pytest.raises(TypeError):
+        fast_wire.dumps_compact({"b": b"bytes"})
+    texts = [compact(m).encode() for m in messages[:2]] + [
+        b' {"a":1}', b'{"a":1}\n', b"[1,2]", b"null", b'"\xc3\xa9"', b"\xef\xbb\xbf{}", '{"a":1}'.encode("utf-16"),
+        bytearray(b'{"a":[1]}'), '{"s":1}']
+    for text in texts:
+        want = json.loads(text)
+        got = fast_wire.loads(text)
+        assert json.dumps(got) == json.dumps(want) and type(got) is type(want)
+    for bad in (b"", b"{", b'{"a":1}x', b"\xff", b"\x00{}", b"[1,]"):
+        with pytest.raises(ValueError) as want:
+            json.loads(bad)
+        with pytest.raises(ValueError) as got:
+            fast_wire.loads(bad)
+        assert type(got.value) is type(want.value) and str(got.value) == str(want.value)
 
 
 def test_report_round_trip():

@@ -163,19 +163,19 @@ class SimRfid:
         loop: the candidates found by bisection, then each tested exactly."""
         range_m = self._profile.rfid_range_m
         s_m = self._s_m
-        ahead_m = self._layout.ahead_m
         positions = self._tag_s_m
-        windows = [(s_m - range_m, s_m + range_m)]
+        low_m, high_m = s_m - range_m, s_m + range_m
         length_m = self._layout.loop_length_m
-        if length_m:
-            windows += [(s_m - range_m - length_m, s_m + range_m - length_m),
-                        (s_m - range_m + length_m, s_m + range_m + length_m)]
         near = set()
-        for low, high in windows:
-            for i in range(bisect.bisect_left(positions, low - 1e-9), bisect.bisect_right(positions, high + 1e-9)):
-                tag_s_m = positions[i]
-                if abs(ahead_m(tag_s_m, s_m)) <= range_m or abs(ahead_m(s_m, tag_s_m)) <= range_m:
-                    near.add(i)
+        for shift_m in ((0.0, -length_m, length_m) if length_m else (0.0,)):
+            first = bisect.bisect_left(positions, low_m + shift_m - 1e-9)
+            end = bisect.bisect_right(positions, high_m + shift_m + 1e-9)
+            if first < end:   # mostly none: a tag every metre or so, read within centimetres
+                ahead_m = self._layout.ahead_m
+                for i in range(first, end):
+                    tag_s_m = positions[i]
+                    if abs(ahead_m(tag_s_m, s_m)) <= range_m or abs(ahead_m(s_m, tag_s_m)) <= range_m:
+                        near.add(i)
         return near
 
     def _read(self, image):
