@@ -23,6 +23,8 @@ COMPILED = (
     "cbtc/railway/train_profile.py", "cbtc/railway/ips_frame.py",
     "cbtc/sim/simulation.py", "cbtc/sim/virtual_train.py", "cbtc/sim/drivers.py", "cbtc/sim/truth.py",
     "cbtc/sim/recorder.py", "cbtc/bus/mock_broker.py", "cbtc/protocol/fast_wire.py",
+    "cbtc/bus/lean_bus.py", "cbtc/bus/net_loop.py", "cbtc/bus/mqtt_packets.py", "cbtc/bus/client.py",
+    "cbtc/live/loop.py",
     "firmware/wire.py", "firmware/wire_zc.py", "firmware/obu.py", "firmware/telegram.py",
 )
 
