@@ -1,12 +1,11 @@
 """What a policy is given and what it gives back: frozen values, so an authority is a function of them alone."""
 
-from dataclasses import dataclass
-
+from cbtc.frozen import frozen_value
 from cbtc.railway.layout import Layout
 from cbtc.railway.train_profile import TrainProfile
 
 
-@dataclass(frozen=True)
+@frozen_value
 class TrainPicture:
     """One train as the zone sees it: its head estimate at its newest report, and when that report was made."""
 
@@ -20,7 +19,7 @@ class TrainPicture:
     behind_m: float = 0.0  # (m, >= 0): the front-most head is s_m + ahead_m, the rear-most tail less behind_m
 
 
-@dataclass(frozen=True)
+@frozen_value
 class Situation:
     """Everything a policy may use to decide one train's authority."""
 
@@ -37,7 +36,7 @@ class Situation:
     received_code: int = None         # the fixed-block speed code the train received (None: the one sent)
 
 
-@dataclass(frozen=True)
+@frozen_value
 class Authority:
     """How far a train may go and how, and why: `reason` names what limits it (a train, the line's end, a block)."""
 

@@ -1,7 +1,6 @@
 """What every position estimator gives the movement authority, and how board times map to controller time."""
 
-from dataclasses import dataclass
-
+from cbtc.frozen import frozen_value
 from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
 
@@ -13,7 +12,7 @@ def span_offsets_m(layout, span, s_m: float):
     return min(0.0, low_m), max(0.0, high_m)
 
 
-@dataclass(frozen=True)
+@frozen_value
 class Estimate:
     """A train's head position and speed at controller time `t_s`, with 1-sigma uncertainties.
 
