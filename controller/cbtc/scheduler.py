@@ -12,8 +12,6 @@ import time
 class VirtualScheduler:
     """Discrete-event scheduler on a virtual clock that starts at `start_s` (seconds)."""
 
-    _waits = False   # whether `_wait_until` waits for a callback's time (wall-clock schedulers)
-
     def __init__(self, start_s: float = 0.0):
         self._now_s = float(start_s)
         self._queue = []
@@ -56,7 +54,8 @@ class VirtualScheduler:
         """Run every callback due up to and including `end_s`, then set the clock to `end_s`."""
         self._stopped = False
         queue, pop = self._queue, heapq.heappop
-        wait = self._wait_until if self._waits else None   # virtual time: no call per event
+        # virtual time waits for nothing: no call per event unless a subclass's `_wait_until` does wait
+        wait = self._wait_until if type(self)._wait_until is not VirtualScheduler._wait_until else None
         while queue and queue[0][0] <= end_s and not self._stopped:
             t_s, _, fn, args = pop(queue)
             if fn is None:
@@ -78,8 +77,6 @@ class RealtimeScheduler(VirtualScheduler):
 
     `wake()` may be called from another thread to make a sleeping scheduler look at its queue again.
     """
-
-    _waits = True
 
     def __init__(self, start_s: float = 0.0, poll_s: float = 0.002):
         super().__init__(start_s)
