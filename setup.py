@@ -8,6 +8,7 @@ CBTC_PURE=1 loads the .py source of every module instead of its compiled form (c
 """
 
 import os
+import shutil
 
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
@@ -41,6 +42,17 @@ def _extension(path):
     return Extension(name, [source], optional=True)
 
 
+def _firmware_pxds():
+    """A directory where Cython finds firmware/*.pxd under the package the build gives them (cbtc.firmware): it
+    looks a module's .pxd up by the module's full name."""
+    root = os.path.join("build", "pxd")
+    os.makedirs(os.path.join(root, "cbtc", "firmware"), exist_ok=True)
+    for name in os.listdir("firmware"):
+        if name.endswith(".pxd"):
+            shutil.copyfile(os.path.join("firmware", name), os.path.join(root, "cbtc", "firmware", name))
+    return root
+
+
 class OptionalBuildExt(build_ext):
     """Compiles COMPILED with Cython, or nothing at all (editable install, CBTC_PURE_BUILD=1, no Cython)."""
 
@@ -55,6 +67,7 @@ class OptionalBuildExt(build_ext):
             self.extensions = []
             return
         made = {ext.name: ext for ext in cythonize(self.extensions, build_dir="build/cython",
+                                                   include_path=[_firmware_pxds()],
                                                    compiler_directives=DIRECTIVES, quiet=True)}
         for ext in self.extensions:   # setuptools' own Extension objects, their sources now the generated C
             ext.sources = made[ext.name].sources

@@ -30,7 +30,11 @@ for spec in specs:
             digest.update(series.tobytes())
     digest.update(repr(commands).encode())
     digest.update(json.dumps(rec.summary(), sort_keys=True).encode())
-print(json.dumps({"digest": digest.hexdigest(), "compiled": cbtc.compiled_modules(), "runs": len(specs)}))
+from cbtc.firmware.obu import OnboardUnit
+from cbtc.zone.controller import ZoneController
+slots = [cls.__name__ for cls, name in ((ZoneController, "layout"), (OnboardUnit, "train_id")) if name in vars(cls)]
+print(json.dumps({"digest": digest.hexdigest(), "compiled": cbtc.compiled_modules(), "runs": len(specs),
+                  "slots": slots}))
 """
 
 
@@ -55,8 +59,9 @@ def test_the_compiled_build_gives_the_same_runs_as_its_source():
     if not compiled["compiled"]:
         pytest.skip("this install is plain Python (editable, or built without a C compiler): nothing to compare")
     assert "cbtc.zone.controller" in compiled["compiled"] and "cbtc.firmware.obu" in compiled["compiled"]
+    assert compiled["slots"] == ["ZoneController", "OnboardUnit"]   # their .pxd found: C types with slots
     pure = run(pure=True)
-    assert pure["compiled"] == []
+    assert pure["compiled"] == [] and pure["slots"] == []
     assert compiled["digest"] == pure["digest"]
 
 

@@ -1,0 +1,13 @@
+# For the compiled build (setup.py) alone: these classes as C types whose attributes set in their methods live in
+# slots, so that self.x is a field read, not a dict lookup; any other attribute still goes to the instance __dict__.
+# tests/test_compiled_build.py holds the build to the source, bit for bit.
+
+cdef class UkfEstimator:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object layout, profile, params, noise, localized, balises
+    cdef public object late_measurements, _clock, _events, _keys, _estimate_memo, _states
+    cdef public object _base, _doubt_span, _trimmed, _filter, _filter_holds, _board_odo_m
+    cdef public object _first_odo_m, _board_t_s, _top_mps, _rolled_m, _roll_run_m, _board_v_mps
+    cdef public object _board_duty_pct, _board_before, _envelope, _motor, speed_drifts, _scale_sigma0
+

@@ -1,0 +1,11 @@
+# For the compiled build (setup.py) alone: these classes as C types whose attributes set in their methods live in
+# slots, so that self.x is a field read, not a dict lookup; any other attribute still goes to the instance __dict__.
+# tests/test_compiled_build.py holds the build to the source, bit for bit.
+
+cdef class Layout:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object name, source, path, closed, length_m, loop_length_m
+    cdef public object segment_count, stations, tags, blocks, ips, _tags_by_uid
+    cdef public object _stations_by_name, wrap
+

@@ -1,0 +1,26 @@
+# For the compiled build (setup.py) alone: these classes as C types whose attributes set in their methods live in
+# slots, so that self.x is a field read, not a dict lookup; any other attribute still goes to the instance __dict__.
+# tests/test_compiled_build.py holds the build to the source, bit for bit.
+
+cdef class SimEncoder:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object _profile, _rng, distance_m, scale_fault, _since_edge_s, age_us
+
+cdef class SimIps:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object _profile, _layout, _rng, _z_mm, _pending, _next_sample_ms
+    cdef public object last_fix_ms, crc_errors, frames_ok, unplugged, offset_m
+
+cdef class SimRfid:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object _profile, _layout, _rng, _inside, _images, _tag_s_m
+    cdef public object _tag_index, present, wrong_tag, data, _s_m
+
+cdef class SimMotor:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object mode, duty_pct
+

@@ -1,0 +1,26 @@
+# For the compiled build (setup.py) alone: these classes as C types whose attributes set in their methods live in
+# slots, so that self.x is a field read, not a dict lookup; any other attribute still goes to the instance __dict__.
+# tests/test_compiled_build.py holds the build to the source, bit for bit.
+
+cdef class TrainState:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object setup, train_id, estimator, rank, on_change, clock
+    cdef public object report, report_recv_s, report_t_s, boots, next_stop, leaving
+    cdef public object dwell_until_s, odo_moved, still_since_s, dwells, limit_s, safe_m
+    cdef public object limited_by, eoa_mm, cmd_seq, cmd_fields, reports_rejected, last_reject
+    cdef public object stop_overruns, restarts, answered_s, fast_until_s, fast_need_m, leader_data_t_s
+    cdef public object sigma_m, authority, mode, rng_gap, gap_alarm, gap_alarms
+    cdef public object deaf_since_s, encoder_failed, encoder_failures, odometer_jumps, measurements_dropped, failures
+    cdef public object failures_said, reports_taken, reach_m, horizon_m, doubt_span, _memo
+
+cdef class ZoneController:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object _moved, _order, _placed, _located, _departing, _departing_for
+    cdef public object _fast_wanting, _fast_lapse_s, _fast_ranked, _unanswered, _heard, _unheard
+    cdef public object layout, client, now_fn, policy, params, cycle_s
+    cdef public object event_driven, zone_id, _rng, session_id, _estimator_factory, trains
+    cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
+    cdef public object use_measured_gap, on_command, report_sink, fast_slots
+

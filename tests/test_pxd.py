@@ -1,0 +1,52 @@
+"""The compiled build's .pxd files keep in step with their Python source: each class they make a C type declares, as
+slots, exactly the attributes its methods set on self, less the names its class body defines (methods, properties,
+defaults), which a C type cannot also hold in a slot. A slot left over or missing would not change results (others
+go to the instance __dict__) but would fail the build of that module or slow it."""
+
+import ast
+import pathlib
+import re
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+PXDS = sorted(ROOT.glob("controller/cbtc/**/*.pxd")) + sorted(ROOT.glob("firmware/*.pxd"))
+
+
+def declared(pxd: pathlib.Path) -> dict:
+    classes, current = {}, None
+    for line in pxd.read_text().splitlines():
+        if m := re.match(r"cdef class (\w+):", line):
+            current = classes[m.group(1)] = set()
+        elif m := re.match(r"\s+cdef public object (.+)", line):
+            current.update(name.strip() for name in m.group(1).split(","))
+    return classes
+
+
+def stored(source: pathlib.Path, name: str) -> set:
+    cls = next(node for node in ast.parse(source.read_text()).body
+               if isinstance(node, ast.ClassDef) and node.name == name)
+    body = set()
+    for item in cls.body:
+        if isinstance(item, (ast.FunctionDef, ast.ClassDef)):
+            body.add(item.name)
+        elif isinstance(item, (ast.Assign, ast.AnnAssign)):
+            for target in item.targets if isinstance(item, ast.Assign) else [item.target]:
+                body.update(n.id for n in ast.walk(target) if isinstance(n, ast.Name))
+    on_self = {n.attr for n in ast.walk(cls) if isinstance(n, ast.Attribute) and isinstance(n.ctx, ast.Store)
+               and isinstance(n.value, ast.Name) and n.value.id == "self"}
+    return {attr for attr in on_self if attr not in body}
+
+
+def test_there_are_pxds_for_the_hot_classes():
+    names = {p.stem for p in PXDS}
+    assert {"controller", "obu", "ukf_estimator", "mock_broker", "simulation"} <= names
+
+
+@pytest.mark.parametrize("pxd", PXDS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_each_pxd_declares_the_attributes_its_class_sets(pxd):
+    classes = declared(pxd)
+    assert classes, f"{pxd} declares no class"
+    for name, slots in classes.items():
+        assert slots == stored(pxd.with_suffix(".py"), name), f"{pxd}: {name}'s slots differ from its source"
+        assert "cdef dict __dict__" in pxd.read_text() and "cdef object __weakref__" in pxd.read_text()
