@@ -4,6 +4,7 @@ test_firmware_mpy)."""
 import hashlib
 import hmac
 import json
+import os
 
 import pytest
 
@@ -30,6 +31,22 @@ def test_hmac_matches_the_standard_library():
             assert wire.hmac_sha256(key, msg) == want and wire.hmac_sha256(key, msg) == want   # the kept states too
             assert wire.hmac_sha256_hashlib(key, msg[:2], msg[2:]) == want
             assert wire.hmac_sha256(key, msg[:2], msg[2:]) == want
+
+
+def test_a_message_macd_again_is_looked_up_and_the_memory_of_them_is_bounded():
+    """A message MACed twice in one process (sealed, then checked, in a simulation) is hashed once: the second MAC
+    comes from what the first left, and equals the standard library's; a key that differs is hashed anew; the
+    messages kept stay under their bound whatever the traffic."""
+    fast_wire.remember_macs()   # as a simulation does
+    msg = b"a/report\n" + os.urandom(40)
+    first = fast_wire.hmac_sha256(KEY, msg)
+    assert (KEY, msg) in fast_wire._RECENT
+    assert fast_wire.hmac_sha256(KEY, msg) == first == hmac.new(KEY, msg, hashlib.sha256).digest()
+    assert (KEY, msg) not in fast_wire._RECENT   # taken: a third MAC hashes again
+    assert fast_wire.hmac_sha256(b"other", msg) == hmac.new(b"other", msg, hashlib.sha256).digest()
+    for i in range(3 * fast_wire._RECENT_MAX):
+        fast_wire.hmac_sha256(KEY, b"%d" % i)
+    assert len(fast_wire._RECENT) <= fast_wire._RECENT_MAX
 
 
 def test_the_controllers_json_gives_the_standard_librarys_results():

@@ -11,12 +11,30 @@ from json import encoder as _encoder
 _KEYED = {}   # key -> (inner, outer): SHA-256 states that have taken the key's two padded blocks
 
 
+_RECENT = None   # once remember_macs() is called: (key, message) -> its MAC, for messages MACed once lately
+_RECENT_MAX = 256
+
+
+def remember_macs():
+    """Keep each message's MAC until the message is MACed again, for a process that seals and checks the same
+    messages (a simulation's boards and zone): each is then hashed once. A live zone checks messages it did not seal
+    and seals messages it does not check, so it does not call this: the memory would only cost it time."""
+    global _RECENT
+    if _RECENT is None:
+        _RECENT = {}
+
+
 def hmac_sha256(key, msg, _digest_name="sha256"):
     """HMAC-SHA256 of `msg` with `key` (RFC 2104), as hmac.digest gives it, from SHA-256 states that have taken the
     key's padded blocks once: each message costs two copies and two short hashes, half of hmac.digest's time (it
     hashes both padded blocks again every message; a zone seals and checks two or three messages a report). The
     padding is wire.hmac_sha256_hashlib's, written inline there: as a function of its own it costs the board 224 B
-    of a heap at its limit."""
+    of a heap at its limit. After remember_macs(), a message MACed a second time is looked up instead."""
+    recent = _RECENT
+    if recent is not None:
+        mac = recent.pop((key, msg), None)
+        if mac is not None:
+            return mac
     states = _KEYED.get(key)
     if states is None:
         block = hashlib.sha256(key).digest() if len(key) > 64 else key
@@ -28,7 +46,12 @@ def hmac_sha256(key, msg, _digest_name="sha256"):
     inner, outer = states[0].copy(), states[1].copy()
     inner.update(msg)
     outer.update(inner.digest())
-    return outer.digest()
+    mac = outer.digest()
+    if recent is not None:
+        if len(recent) >= _RECENT_MAX:   # messages never MACed again (their copy lost on the way): forgotten
+            recent.clear()
+        recent[(key, msg)] = mac
+    return mac
 
 
 _scan_once = json.decoder.JSONDecoder().scan_once

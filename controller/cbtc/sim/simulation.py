@@ -9,7 +9,7 @@ import numpy as np
 
 from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
-from cbtc.protocol import wire
+from cbtc.protocol import fast_wire, wire
 from cbtc.scheduler import VirtualScheduler
 from cbtc.sim import faults, progress
 from cbtc.sim.recorder import Recorder
@@ -25,6 +25,7 @@ class Simulation:
 
     def __init__(self, config: ScenarioConfig, keep_reports: bool = False, keep_samples: bool = False):
         self.config = config
+        fast_wire.remember_macs()   # the boards and the zone here seal and check the same messages: hashed once
         layout = config.layout
         ids = [t.train_id for t in config.trains]
         if len(set(ids)) != len(ids):
