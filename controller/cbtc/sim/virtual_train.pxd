@@ -1,6 +1,4 @@
-# For the compiled build (setup.py) alone: these classes as C types whose attributes set in their methods live in
-# slots, so that self.x is a field read, not a dict lookup; any other attribute still goes to the instance __dict__.
-# tests/test_compiled_build.py holds the build to the source, bit for bit.
+# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py)
 
 cdef class VirtualTrain:
     cdef dict __dict__
