@@ -14,12 +14,16 @@ PXDS = sorted(ROOT.glob("controller/cbtc/**/*.pxd")) + sorted(ROOT.glob("firmwar
 
 
 def declared(pxd: pathlib.Path) -> dict:
+    """Each class the .pxd declares -> its declarations: the slot names, and "__dict__" / "__weakref__" when it keeps
+    them."""
     classes, current = {}, None
     for line in pxd.read_text().splitlines():
         if m := re.match(r"cdef class (\w+):", line):
             current = classes[m.group(1)] = set()
         elif m := re.match(r"\s+cdef public object (.+)", line):
             current.update(name.strip() for name in m.group(1).split(","))
+        elif m := re.match(r"\s+cdef (?:dict __dict__|object __weakref__)$", line):
+            current.add(line.split()[-1])
     return classes
 
 
@@ -47,6 +51,8 @@ def test_there_are_pxds_for_the_hot_classes():
 def test_each_pxd_declares_the_attributes_its_class_sets(pxd):
     classes = declared(pxd)
     assert classes, f"{pxd} declares no class"
-    for name, slots in classes.items():
+    for name, names in classes.items():
+        # a __dict__ for what else an instance is given, a __weakref__ for whoever holds it weakly
+        assert {"__dict__", "__weakref__"} <= names, f"{pxd}: {name} keeps no __dict__ or no __weakref__"
+        slots = names - {"__dict__", "__weakref__"}
         assert slots == stored(pxd.with_suffix(".py"), name), f"{pxd}: {name}'s slots differ from its source"
-        assert "cdef dict __dict__" in pxd.read_text() and "cdef object __weakref__" in pxd.read_text()
