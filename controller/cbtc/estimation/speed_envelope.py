@@ -83,9 +83,11 @@ class SpeedEnvelope:
             for anchor in self._anchors:
                 if anchor[1] is not None:
                     v0 = anchor[1]
-                    anchor[1] = max(0.0, ride_mps(v0, dt_s, *low) if len(low) > 1 else v0 + low[0] * dt_s)
+                    anchor[1] = max(0.0, ride_mps(v0, dt_s, low[0], low[1], low[2], low[3]) if len(low) > 1
+                                     else v0 + low[0] * dt_s)
                 v0 = anchor[2]
-                anchor[2] = ride_mps(v0, dt_s, *high) if len(high) > 1 else v0 + high[0] * dt_s
+                anchor[2] = (ride_mps(v0, dt_s, high[0], high[1], high[2], high[3]) if len(high) > 1
+                             else v0 + high[0] * dt_s)
                 if t_s - anchor[0] < JUDGE_S:
                     continue
                 excess = v_mps - anchor[2]
