@@ -139,7 +139,7 @@ def test_a_report_is_answered_across_two_wifi_legs_and_the_controllers_loopback(
         unit._publish, unit.on_message = sent_at, received
     sim.run()
     round_trip_ms = 1000.0 * np.array(list(answered.values()))
-    assert len(round_trip_ms) > 400
+    assert len(round_trip_ms) > 500
     assert round_trip_ms.min() >= 9.3 - 1e-6
     assert 11.0 < np.median(round_trip_ms) < 15.0
     assert np.percentile(round_trip_ms, 95) < 17.0
@@ -172,37 +172,6 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
     assert period_ms(0, 25.0, 30.0) == pytest.approx(20, abs=1)
     assert period_ms(1, 25.0, 30.0) == pytest.approx(50, abs=1), "nobody follows B"
 
-
-def test_a_train_standing_held_is_not_asked_for_fast_reports_until_a_command_lets_it_move():
-    """Eleven trains fill lego_oval: each is held by the one ahead and none may move, so their reports say nothing new
-    and each reports at the board's own 50 ms, or nearly (they were asked for 20 ms, every train's follower being
-    held).
-    In a queue that moves, a standing train is asked for them (but at the end of a dwell) only by a command that lets
-    it move."""
-    from cbtc.sim.simulation import Simulation
-    from cbtc.zone.config import queue_scenario
-
-    sim = Simulation(queue_scenario(load_layout("lego_oval"), 11, seed=0, duration_s=8.0), keep_reports=True)
-    sim.run()
-    for i in range(11):
-        reports = [r for t, r in sim.recorder.reports[i] if 4.0 <= t]
-        assert all(r["v_mmps"] == 0 for r in reports)
-        # (a command that leaves a few mm beyond the window lets a train creep: it is asked fast then, for a while)
-        assert (reports[-1]["t_ms"] - reports[0]["t_ms"]) / (reports[-1]["seq"] - reports[0]["seq"]) > 45.0
-
-    sim = Simulation(queue_scenario(load_layout("lego_oval"), 5, seed=0, duration_s=20.0, start_gap_m=0.05))
-    zc, asked = sim.zc, []
-    command = zc._command
-
-    def watched(state, *args):
-        command(state, *args)
-        fields, now_s = state.cmd_fields, args[-1]
-        if fields is not None and fields[9] and state.report["v_mmps"] == 0 and not zc._leaving_soon(state, now_s):
-            asked.append(fields[8] - state.report["odo_mm"])   # room the command gives a standing train asked fast
-
-    zc._command = watched
-    sim.run()
-    assert asked and min(asked) > sim.config.trains[0].profile.stop_window_mm()
 
 def test_a_dwell_ends_within_a_fast_report_of_its_time():
     """Near the end of a dwell the controller asks the train for fast reports, so the dwell ends within 20 ms of its

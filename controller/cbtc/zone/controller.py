@@ -6,7 +6,7 @@ cycle, 10 Hz by default, covers the trains whose reports are missing): it orders
 authority policy how far each may go, converts that limit (the end of authority, supervised on board by the trip
 curve) and the next station stop (a service target) into the train's own odometer frame and publishes a sealed
 command. A train whose follower is held by it is asked for faster reports (`AuthorityParams.fast_report_ms`): its
-follower's authority rests on the age of that data. Not while it stands held itself: then it has nothing new to say. The controller grants fast reports within the report rate it is
+follower's authority rests on the age of that data. The controller grants fast reports within the report rate it is
 sized for (`report_budget_hz`), to the trains whose followers are nearest their limits first.
 
 A train gets no authority while any configured train is unlocated (it could be anywhere) or its reports do not yet
@@ -702,13 +702,11 @@ class ZoneController:
         else:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
-        fields = [report["boot"], self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm,
+        rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) or self._leaving_soon(state, now_s) \
+            else 0
+        fields = (report["boot"], self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm,
                   int(self.params.ttl_s * 1000), max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm,
-                  0, max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0)))]  # floored
-        if self._leaving_soon(state, now_s) or (self._fast_reports(state, now_s)
-                                                and not self._held_still(report, fields, state.setup.profile)):
-            fields[9] = self.params.fast_report_ms
-        fields = tuple(fields)
+                  rpt_ms, max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))  # floored
         if fields == state.cmd_fields:
             # the board holds this very command (same report, so the same expiry): sending it again changes nothing
             return
@@ -739,14 +737,6 @@ class ZoneController:
                 return True
         # its place among them, least authority left first (ties by id)
         return bisect.bisect_left(self._fast_ranked, (state.fast_need_m, state.train_id)) < self.fast_slots
-
-    @staticmethod
-    def _held_still(report, fields, profile):
-        """True when the train of `report` stands and the command `fields` lets it go no further than its stop window,
-        or at no speed: until a command lets it move, its reports say nothing new. The command that lets it move asks
-        for them fast again (when its follower wants them), so its first moves are reported fast."""
-        return report["v_mmps"] < _STANDING_MMPS and (fields[3] == 0 or fields[8] - report["odo_mm"]
-                                                      <= profile.stop_window_mm())
 
     @staticmethod
     def _leaving_soon(state, now_s):
