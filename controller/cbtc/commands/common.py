@@ -80,7 +80,8 @@ def run_scenario_and_report(config, title, args) -> int:
               f"violation), emergency trips {summary['emergency_trips']}, stranded trains {summary['stranded']}")
         if summary["all_standing_at_end_s"] > 20.0:
             print(f"warning: every train stood still for the last {summary['all_standing_at_end_s']:.0f} s: gridlock? "
-                  f"(fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
+                  f"(a loop filled so that each train is held by the one ahead: give fewer trains or a longer layout; "
+                  f"fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
         if args.plot:
             print(f"distance-time plot: {args.plot}")
         if recording is not None:
