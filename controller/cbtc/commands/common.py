@@ -78,10 +78,10 @@ def run_scenario_and_report(config, title, args) -> int:
               f"rolled onto a standing train {summary['rolled_onto']}, "
               f"authority beyond the train ahead {'-' if beyond is None else f'{beyond:+.3f} m'} (worst; > 0 is a "
               f"violation), emergency trips {summary['emergency_trips']}, stranded trains {summary['stranded']}")
-        if summary["all_standing_at_end_s"] > 20.0:
-            print(f"warning: every train stood still for the last {summary['all_standing_at_end_s']:.0f} s: gridlock? "
-                  f"(a loop filled so that each train is held by the one ahead: give fewer trains or a longer layout; "
-                  f"fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
+        if summary["all_standing_at_end_s"] > 20.0 or summary["gridlocked"]:
+            print("warning: every train stood still (or crept less than 5 cm) for the last 20 s or more: gridlock? "
+                  "(a loop filled so that each train is held by the one ahead: give fewer trains or a longer layout; "
+                  "fixed block: give more blocks than the trains can fill, cbtc sim --blocks)", file=sys.stderr)
         if args.plot:
             print(f"distance-time plot: {args.plot}")
         if recording is not None:

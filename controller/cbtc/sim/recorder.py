@@ -19,6 +19,7 @@ from cbtc.sim.truth import head_inside, protected_all_m, train_ahead
 from cbtc.zone.config import train_key
 
 STRANDED_S = 20.0
+GRIDLOCK_M = 0.05   # every train crept less than this over the last STRANDED_S: gridlock
 
 
 _SAMPLES = ("travelled_m", "head_s_m", "v_mps", "gap_m", "est_s_m", "est_sigma_m", "following_gap_m")
@@ -231,6 +232,18 @@ class Recorder:
         moved_m = max(travel) - min(travel)
         return moved_m < 0.01 and self.room_m[i] > self._reach_m[i] + self.sim.config.params.margin_m
 
+    def gridlocked(self) -> bool:
+        """Every train moved less than GRIDLOCK_M over the last STRANDED_S of a run at least twice that long, none
+        stopped dead by the world: each is held by another (a loop filled with trains, blocks all taken), though they
+        may creep a few mm at a time as the edges of their authorities move."""
+        if self._t_first_s is None or self._t_last_s - self._t_first_s < 2 * STRANDED_S:
+            return False
+        for i, train in enumerate(self.sim.trains):
+            travel = [d for _t, d in self._window[i]]
+            if train.stopped_dead or max(travel) - min(travel) >= GRIDLOCK_M:
+                return False
+        return True
+
     # --- figures --------------------------------------------------------------------------------------------------
 
     def lap_times(self, i):
@@ -302,6 +315,7 @@ class Recorder:
             "encoder_trips": sum(t.obu.enc_fails for t in self.sim.trains),
             "all_standing_at_end_s": round(self._t_last_s - (self._t_first_s if self._moving_last_s is None
                                                               else self._moving_last_s), 3) if started else 0.0,
+            "gridlocked": self.gridlocked(),
         }
 
 
