@@ -225,24 +225,28 @@ class Recorder:
     def stranded(self, i) -> bool:
         """Train i stood still over the last STRANDED_S of a run at least twice that long, with more than its following
         reach of true room ahead, and not because the world stopped it dead."""
-        train = self.sim.trains[i]
-        if self._t_first_s is None or self._t_last_s - self._t_first_s < 2 * STRANDED_S or train.stopped_dead:
-            return False
-        travel = [d for _t, d in self._window[i]]
-        moved_m = max(travel) - min(travel)
-        return moved_m < 0.01 and self.room_m[i] > self._reach_m[i] + self.sim.config.params.margin_m
+        moved_m = self._moved_lately_m(i)
+        return moved_m is not None and moved_m < 0.01 and \
+            self.room_m[i] > self._reach_m[i] + self.sim.config.params.margin_m
 
     def gridlocked(self) -> bool:
         """Every train moved less than GRIDLOCK_M over the last STRANDED_S of a run at least twice that long, none
         stopped dead by the world: each is held by another (a loop filled with trains, blocks all taken), though they
         may creep a few mm at a time as the edges of their authorities move."""
-        if self._t_first_s is None or self._t_last_s - self._t_first_s < 2 * STRANDED_S:
-            return False
-        for i, train in enumerate(self.sim.trains):
-            travel = [d for _t, d in self._window[i]]
-            if train.stopped_dead or max(travel) - min(travel) >= GRIDLOCK_M:
+        for i in range(len(self.sim.trains)):
+            moved_m = self._moved_lately_m(i)
+            if moved_m is None or moved_m >= GRIDLOCK_M:
                 return False
         return True
+
+    def _moved_lately_m(self, i):
+        """How far train i moved over the last STRANDED_S (m); None for a run shorter than twice that, or a train the
+        world stopped dead (it stands for a reason of its own)."""
+        if self._t_first_s is None or self._t_last_s - self._t_first_s < 2 * STRANDED_S or \
+                self.sim.trains[i].stopped_dead:
+            return None
+        travel = [d for _t, d in self._window[i]]
+        return max(travel) - min(travel)
 
     # --- figures --------------------------------------------------------------------------------------------------
 
