@@ -4,9 +4,9 @@ Both run callbacks at their due time in due order; ties break by insertion order
 deterministic. Code that is scheduled never reads a clock: it is handed `now_s`.
 """
 
-import heapq
 import itertools
 import time
+from heapq import heappop, heappush
 
 
 class VirtualScheduler:
@@ -25,7 +25,7 @@ class VirtualScheduler:
     def call_at(self, t_s: float, fn, *args):
         """Run `fn(*args)` at time `t_s` (never earlier than now). Returns a handle for `cancel`."""
         entry = [max(float(t_s), self._now_s), next(self._counter), fn, args]
-        heapq.heappush(self._queue, entry)
+        heappush(self._queue, entry)
         return entry
 
     def call_later(self, delay_s: float, fn, *args):
@@ -53,7 +53,7 @@ class VirtualScheduler:
     def run_until(self, end_s: float) -> None:
         """Run every callback due up to and including `end_s`, then set the clock to `end_s`."""
         self._stopped = False
-        queue, pop = self._queue, heapq.heappop
+        queue, pop = self._queue, heappop
         # virtual time waits for nothing: no call per event unless a subclass's `_wait_until` does wait
         wait = self._wait_until if type(self)._wait_until is not VirtualScheduler._wait_until else None
         while queue and queue[0][0] <= end_s and not self._stopped:

@@ -8,7 +8,7 @@ With the gap at S_min(v_B), eq. 24 keeps it there while both trains move (d/dt o
 with both standing at S_min(0) = S_M, eqs. 25-26 keep B exactly at S_min(v_B) while both accelerate.
 """
 
-import math
+from math import sqrt
 
 
 def sync_deceleration_mps2(v_follower_mps: float, v_leader_mps: float, beta_s_mps2: float) -> float:
@@ -23,7 +23,7 @@ def departure_accelerations_mps2(k: float, beta_s_mps2: float):
     """Eqs. 25-26: (alpha_A, alpha_B) in m/s^2 for leader A and follower B departing together from minimum distance."""
     if not 0.0 < k <= 1.0:
         raise ValueError(f"departure_accelerations_mps2: k must be in (0, 1], got {k}")
-    return k * beta_s_mps2, beta_s_mps2 * (-1.0 + math.sqrt(1.0 + 4.0 * k)) / 2.0
+    return k * beta_s_mps2, beta_s_mps2 * (-1.0 + sqrt(1.0 + 4.0 * k)) / 2.0
 
 
 def departure_k_for(accel_max_leader_mps2: float, accel_max_follower_mps2: float, beta_s_mps2: float) -> float:

@@ -9,8 +9,8 @@ time); the end of authority is a point of the follower's own odometer, so the fo
 latency do not move it.
 """
 
-import math
 from dataclasses import dataclass
+from math import sqrt
 
 from cbtc.railway.physics import braking_distance_m
 
@@ -33,7 +33,7 @@ class AuthorityParams:
 
 
 def combined_sigma_m(sigma_follower_m: float, sigma_leader_m: float) -> float:
-    return math.sqrt(sigma_follower_m ** 2 + sigma_leader_m ** 2)
+    return sqrt(sigma_follower_m ** 2 + sigma_leader_m ** 2)
 
 
 def rollback_allowance_m(leader_age_s: float, p: AuthorityParams, leader_v_mps: float = None,
@@ -87,7 +87,7 @@ def braking_curve_speed_mps(distance_m: float, v_now_mps: float, beta_mps2: floa
     usable_m = distance_m - v_now_mps * dead_time_s
     if usable_m <= 0.0:
         return 0.0
-    return math.sqrt(2.0 * beta_mps2 * usable_m)
+    return sqrt(2.0 * beta_mps2 * usable_m)
 
 
 def following_reach_m(profile) -> float:

@@ -11,7 +11,7 @@ A report's duty is the mean over its interval; the duty of the report before cou
 measure lags the motor. A train braked at a stand anchors only the fastest it can go from there.
 """
 
-import math
+from math import exp
 
 ANCHOR_S = 0.1      # a new anchor every this many seconds of reports
 JUDGE_S = 0.25      # a band is judged once this old: over shorter spans the speed measure's lag and the duty's
@@ -35,7 +35,7 @@ def ride_mps(v0_mps, dt_s, v_ss_mps, tau_s, up_mps2, down_mps2):
         if dt_s <= t_knee:
             return v0_mps - down_mps2 * dt_s
         v0_mps, dt_s = v_knee, dt_s - t_knee
-    return v_ss_mps + (v0_mps - v_ss_mps) * math.exp(-dt_s / tau_s)
+    return v_ss_mps + (v0_mps - v_ss_mps) * exp(-dt_s / tau_s)
 
 
 class SpeedEnvelope:

@@ -18,9 +18,9 @@ filterpy's UnscentedKalmanFilter on them is the reference `TrackUkf` is held equ
 `TrackUkf` does the same algebra on Python floats: a state of 3 or 4 is too small for numpy's per-call cost to pay.
 """
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
+from math import hypot, inf, log1p, sqrt
 from statistics import NormalDist
 
 import numpy as np
@@ -111,7 +111,7 @@ def hx_ips(x, layout):
 def hx_range(x, layout, radio_x_m, radio_y_m):
     """The distance (m) from the head at `x[S]` to a wayside radio at (radio_x_m, radio_y_m)."""
     px, py = layout.xy(x[S])
-    return np.array([math.hypot(float(px) - radio_x_m, float(py) - radio_y_m)])
+    return np.array([hypot(float(px) - radio_x_m, float(py) - radio_y_m)])
 
 
 def along_track_residual(layout):
@@ -148,9 +148,9 @@ def cholesky_upper(P, scale=1.0):
         acc = scale * P[j][j]
         for k in range(j):
             acc -= U[k][j] * U[k][j]
-        if not 0.0 < acc < math.inf:
+        if not 0.0 < acc < inf:
             raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
-        pivot = math.sqrt(acc)
+        pivot = sqrt(acc)
         row = U[j]
         row[j] = pivot
         for i in range(j + 1, n):
@@ -165,31 +165,31 @@ def _cholesky_upper4(P, scale):
     """cholesky_upper written out for a state of 4, the filter's usual one."""
     (p00, p01, p02, p03), (_, p11, p12, p13), (_, _, p22, p23), (_, _, _, p33) = P
     a = scale * p00
-    if not 0.0 < a < math.inf:
+    if not 0.0 < a < inf:
         raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
-    u00 = math.sqrt(a)
+    u00 = sqrt(a)
     u01, u02, u03 = scale * p01 / u00, scale * p02 / u00, scale * p03 / u00
     a = scale * p11 - u01 * u01
-    if not 0.0 < a < math.inf:
+    if not 0.0 < a < inf:
         raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
-    u11 = math.sqrt(a)
+    u11 = sqrt(a)
     u12, u13 = (scale * p12 - u01 * u02) / u11, (scale * p13 - u01 * u03) / u11
     a = scale * p22 - u02 * u02 - u12 * u12
-    if not 0.0 < a < math.inf:
+    if not 0.0 < a < inf:
         raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
-    u22 = math.sqrt(a)
+    u22 = sqrt(a)
     u23 = (scale * p23 - u02 * u03 - u12 * u13) / u22
     a = scale * p33 - u03 * u03 - u13 * u13 - u23 * u23
-    if not 0.0 < a < math.inf:
+    if not 0.0 < a < inf:
         raise np.linalg.LinAlgError("covariance not positive definite: no sigma points")
-    return [[u00, u01, u02, u03], [0.0, u11, u12, u13], [0.0, 0.0, u22, u23], [0.0, 0.0, 0.0, math.sqrt(a)]]
+    return [[u00, u01, u02, u03], [0.0, u11, u12, u13], [0.0, 0.0, u22, u23], [0.0, 0.0, 0.0, sqrt(a)]]
 
 
 @lru_cache(maxsize=None)
 def gate_sigmas(gate_prob: float):
     """(1-D, 2-D) Mahalanobis distances holding `gate_prob` of a normal innovation: the square roots of chi-square's
     quantiles, in closed form (one degree: a normal's two-sided quantile; two: -2 ln(1 - p))."""
-    return NormalDist().inv_cdf(0.5 + 0.5 * gate_prob), math.sqrt(-2.0 * math.log1p(-gate_prob))
+    return NormalDist().inv_cdf(0.5 + 0.5 * gate_prob), sqrt(-2.0 * log1p(-gate_prob))
 
 
 class TrackUkf:
@@ -340,7 +340,7 @@ class TrackUkf:
 
         def distance(s_m):
             px, py = xy_m(s_m)
-            return (math.hypot(px - radio_x_m, py - radio_y_m),)
+            return (hypot(px - radio_x_m, py - radio_y_m),)
 
         return self._position_update(distance, (range_m,), ((sigma_m ** 2,),), self._gate1)
 

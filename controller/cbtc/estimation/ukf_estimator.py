@@ -18,10 +18,10 @@ can tell which. Until they agree again the estimate covers both (`Estimate.ahead
 keeps its own position; a balise read that the filter gates but that agrees with the fixes moves the position there.
 """
 
-import bisect
-import math
 import statistics
+from bisect import bisect_right
 from dataclasses import dataclass, fields
+from math import hypot, isfinite, sqrt
 
 from numpy.linalg import LinAlgError
 
@@ -278,8 +278,8 @@ class UkfEstimator:
         _t, x, P = state.snap
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
-        low = 1.0 + k_m - k_sigma * math.sqrt(max(P[K][K], 0.0))
-        return max(low, _WHEEL_LOWEST) if math.isfinite(low) else low
+        low = 1.0 + k_m - k_sigma * sqrt(max(P[K][K], 0.0))
+        return max(low, _WHEEL_LOWEST) if isfinite(low) else low
 
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
@@ -288,7 +288,7 @@ class UkfEstimator:
         if state is None:
             return True
         _t, x, P = state.snap
-        if not math.isfinite(sum(x) + sum(map(sum, P))):   # a NaN or an infinity anywhere
+        if not isfinite(sum(x) + sum(map(sum, P))):   # a NaN or an infinity anywhere
             return False
         try:
             cholesky_upper(P)
@@ -394,7 +394,7 @@ class UkfEstimator:
         was no roll: a train cannot turn back before it stops."""
         v_mps = self._least_speed_mps(self._board_v_mps)
         low = self.odometer_per_m_low(_SCALE_K_SIGMA)
-        if not (v_mps > 0.0 and math.isfinite(low)):
+        if not (v_mps > 0.0 and isfinite(low)):
             return 0.0
         return max(low, _WHEEL_LOWEST) * v_mps * v_mps / (2.0 * _ADHESION_MPS2)
 
@@ -406,8 +406,8 @@ class UkfEstimator:
                 or (state.tag_offset is not None and state.tag_offset < 0.0):
             return _WHEEL_HIGHEST
         _t, x, P = state.snap
-        high = 1.0 + float(x[K]) + _SCALE_K_SIGMA * math.sqrt(max(P[K][K], 0.0))
-        return min(high, _WHEEL_HIGHEST) if math.isfinite(high) else _WHEEL_HIGHEST
+        high = 1.0 + float(x[K]) + _SCALE_K_SIGMA * sqrt(max(P[K][K], 0.0))
+        return min(high, _WHEEL_HIGHEST) if isfinite(high) else _WHEEL_HIGHEST
 
     def _speed_step(self, t_s, v_mps, duty_pct):
         """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report, or since the one
@@ -483,7 +483,7 @@ class UkfEstimator:
             if self._trimmed and event.t_s < self._events[0].t_s:
                 self.late_measurements += 1
                 continue
-            index = bisect.bisect_right(keys, event.sort_key)
+            index = bisect_right(keys, event.sort_key)
             keys.insert(index, event.sort_key)
             self._events.insert(index, event)
             self._states.insert(index, None)
@@ -525,7 +525,7 @@ class UkfEstimator:
         elif event.kind == "roll":
             # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
             step_m, run_m, d_m = event.data
-            f.widen_position(math.sqrt(step_m * (step_m + 2.0 * run_m)))
+            f.widen_position(sqrt(step_m * (step_m + 2.0 * run_m)))
             f.hold_still(_ROLL_MPS, d_m)
         elif event.kind == "step":
             # the wheel's scale changed: re-opened, so the position widens with the travel and the IPS and balises
@@ -617,7 +617,7 @@ class UkfEstimator:
         if len(innovations) < self.params.relocate_after:
             return None
         return (statistics.median(innovations),
-                1.25 * self.profile.ips_sigma_m / math.sqrt(len(innovations)))   # sigma of a median of normals
+                1.25 * self.profile.ips_sigma_m / sqrt(len(innovations)))   # sigma of a median of normals
 
     def _consensus(self, s_m, d_m, anchors_m):
         """(low_m, high_m, anchor_m, sigma_m) where `locate_fixes` of the gated IPS `anchors_m` agree: the span of
@@ -628,7 +628,7 @@ class UkfEstimator:
             return None
         anchor_m, sigma_m = placed
         ring_m = self.layout.loop_length_m
-        gate_m = 3.0 * math.sqrt(2.0) * self.profile.ips_sigma_m
+        gate_m = 3.0 * sqrt(2.0) * self.profile.ips_sigma_m
         offsets = [circular_offset_m(a + d_m, s_m, ring_m) for a in anchors_m
                    if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
         return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
@@ -639,9 +639,9 @@ class UkfEstimator:
         _low, _high, anchor_m, sigma_m = consensus
         offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]), in_field)
         read_s_m = tag_s_m - offset_m
-        tag_sigma_m = math.sqrt(var_m2)
+        tag_sigma_m = sqrt(var_m2)
         ring_m = self.layout.loop_length_m
-        if abs(circular_offset_m(anchor_m + d_m, read_s_m, ring_m)) > 3.0 * math.hypot(sigma_m, tag_sigma_m):
+        if abs(circular_offset_m(anchor_m + d_m, read_s_m, ring_m)) > 3.0 * hypot(sigma_m, tag_sigma_m):
             return False
         f.relocate(self.layout.wrap(read_s_m + float(f.mean[D]) - d_m), tag_sigma_m)
         if f.n > K:   # the wheel was wrong: its scale is learnt afresh from the fixes that follow
@@ -663,7 +663,7 @@ class UkfEstimator:
                                 self.layout.loop_length_m)
         if found is None:
             return None
-        return found[0], 2.0 * self.profile.ips_sigma_m / math.sqrt(found[1])
+        return found[0], 2.0 * self.profile.ips_sigma_m / sqrt(found[1])
 
     def _locate(self, event):
         """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
@@ -677,7 +677,7 @@ class UkfEstimator:
         if event.kind == "tag":
             tag_s_m, d_m, in_field = event.data
             offset_m, var_m2 = tag_read_model(self.noise, v_mps, in_field)
-            s_m, sigma_s_m = tag_s_m - offset_m, math.sqrt(var_m2)
+            s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
             used = _State(None, tags_used=1)
         else:
             anchors = []
@@ -757,7 +757,7 @@ class UkfEstimator:
         if state.doubt is not None:
             ahead_m, behind_m = max(ahead_m, state.doubt[1]), max(behind_m, -state.doubt[0])
         est = Estimate(s_m=self._position_m(x, dt_s), v_mps=float(x[V]),
-                       sigma_s_m=math.sqrt(max(var_s, 0.0)), sigma_v_mps=math.sqrt(var_v), t_s=now_s,
+                       sigma_s_m=sqrt(max(var_s, 0.0)), sigma_v_mps=sqrt(var_v), t_s=now_s,
                        data_t_s=newest_t_s + offset_s, ahead_m=ahead_m, behind_m=behind_m)
         self._estimate_memo = (state, now_s, offset_s, newest_t_s, est)
         return est

@@ -5,12 +5,13 @@ Python loop over the points; `project(x, y)` gives the arc length of the nearest
 per segment), for floats or arrays. A closed path wraps `s` modulo its length; an open one clips it to [0, length].
 """
 
-import bisect
-import math
+from bisect import bisect_right
+from math import atan2, copysign, cos, pi, sin
 
 import numpy as np
+from numpy import ndarray
 
-MAX_ARC_RAD = math.pi   # longer runs of one curvature are split, so every arc is at most a half circle
+MAX_ARC_RAD = pi   # longer runs of one curvature are split, so every arc is at most a half circle
 
 
 def circular_offset_m(a_m, b_m, length_m=None):
@@ -37,7 +38,7 @@ def _runs(segments):
             k, length = 0.0, float(seg[1])
         else:
             radius, angle = float(seg[1]), float(seg[2])
-            k, length = math.copysign(1.0 / radius, angle), radius * abs(angle)
+            k, length = copysign(1.0 / radius, angle), radius * abs(angle)
         if runs and runs[-1][0] == k and abs(k) * (runs[-1][1] + length) <= MAX_ARC_RAD + 1e-12:
             runs[-1][1] += length
         else:
@@ -49,9 +50,9 @@ def _pose_in(seg, d):
     """(x_m, y_m, heading_rad) at distance `d` (m) into a run `seg` = (curvature, x0, y0, heading0, centre x, y)."""
     k, x0, y0, h0, cx, cy = seg
     if k == 0.0:
-        return x0 + d * math.cos(h0), y0 + d * math.sin(h0), h0
+        return x0 + d * cos(h0), y0 + d * sin(h0), h0
     h = h0 + k * d
-    return cx + math.sin(h) / k, cy - math.cos(h) / k, h
+    return cx + sin(h) / k, cy - cos(h) / k, h
 
 
 class Path:
@@ -78,14 +79,14 @@ class Path:
             if k == 0.0:
                 cxs.append(0.0)
                 cys.append(0.0)
-                x += length * math.cos(h)
-                y += length * math.sin(h)
+                x += length * cos(h)
+                y += length * sin(h)
             else:  # centre of the circle: one radius to the left of the heading (to the right when k < 0)
-                cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
+                cx, cy = x - sin(h) / k, y + cos(h) / k
                 cxs.append(cx)
                 cys.append(cy)
                 h += k * length
-                x, y = cx + math.sin(h) / k, cy - math.cos(h) / k
+                x, y = cx + sin(h) / k, cy - cos(h) / k
             s += length
         self.length_m = s
         self.end_pose = (x, y, h)
@@ -110,7 +111,7 @@ class Path:
 
     def wrap(self, s_m):
         """Closed: `s_m` modulo the length; open: clipped to [0, length]. Float in, float out; arrays elementwise."""
-        if isinstance(s_m, np.ndarray):
+        if isinstance(s_m, ndarray):
             return np.mod(s_m, self.length_m) if self.closed else np.clip(s_m, 0.0, self.length_m)
         s = float(s_m)
         return s % self.length_m if self.closed else min(max(s, 0.0), self.length_m)
@@ -119,7 +120,7 @@ class Path:
 
     def _pose_scalar(self, s_m):
         s = self.wrap(float(s_m))
-        i = max(bisect.bisect_right(self._starts, s) - 1, 0)
+        i = max(bisect_right(self._starts, s) - 1, 0)
         return _pose_in(self._seg[i], s - self._starts[i])
 
     def _pose_on(self, i, d):
@@ -165,11 +166,11 @@ class Path:
         for seg, start, length, first, last in self._seg_ends:
             k, x0, y0, h0, cx, cy = seg
             if k == 0.0:
-                d_free = (px - x0) * math.cos(h0) + (py - y0) * math.sin(h0)
+                d_free = (px - x0) * cos(h0) + (py - y0) * sin(h0)
             else:
                 sign = 1.0 if k > 0.0 else -1.0
-                theta0 = h0 - sign * (math.pi / 2)
-                swept = ((math.atan2(py - cy, px - cx) - theta0) * sign) % (2.0 * math.pi)
+                theta0 = h0 - sign * (pi / 2)
+                swept = ((atan2(py - cy, px - cx) - theta0) * sign) % (2.0 * pi)
                 d_free = swept / abs(k)
             d = min(max(d_free, 0.0), length)
             free = first if d == 0.0 else last if d == length else _pose_in(seg, d)

@@ -6,8 +6,8 @@ and misreads bits of their telegrams.
 Randomness comes from the numpy Generator handed in, so a seed reproduces a run.
 """
 
-import bisect
-import math
+from bisect import bisect_left, bisect_right
+from math import cos, floor, pi, sin, sqrt
 
 import numpy as np
 
@@ -38,19 +38,19 @@ class SimEncoder:
         factor = (1.0 + p.encoder_scale_error + slip) * self.scale_fault
         before = self.distance_m
         self.distance_m += ds_m * factor
-        newest = math.floor(self.distance_m * p.counts_per_m)
-        if dt_s <= 0.0 or newest <= math.floor(before * p.counts_per_m):
+        newest = floor(self.distance_m * p.counts_per_m)
+        if dt_s <= 0.0 or newest <= floor(before * p.counts_per_m):
             return
         x_m = (newest / p.counts_per_m - before) / factor     # true travel into the step at the newest edge
         if abs(a_mps2) < 1e-9:
             tau_s = x_m / v0_mps if v0_mps > 0 else dt_s
         else:
-            tau_s = (math.sqrt(max(0.0, v0_mps * v0_mps + 2.0 * a_mps2 * x_m)) - v0_mps) / a_mps2
+            tau_s = (sqrt(max(0.0, v0_mps * v0_mps + 2.0 * a_mps2 * x_m)) - v0_mps) / a_mps2
         self._since_edge_s = dt_s - min(max(tau_s, 0.0), dt_s)
 
     def count(self) -> int:
         self.age_us = min(int(round(self._since_edge_s * 1e6)), 1000000)
-        return int(math.floor(self.distance_m * self._profile.counts_per_m))
+        return int(floor(self.distance_m * self._profile.counts_per_m))
 
 
 class SimIps:
@@ -84,10 +84,10 @@ class SimIps:
             x_m += self._rng.normal(0.0, p.ips_sigma_m)
             y_m += self._rng.normal(0.0, p.ips_sigma_m)
             if self._rng.random() < p.ips_outlier:
-                angle = self._rng.uniform(0, 2 * math.pi)
+                angle = self._rng.uniform(0, 2 * pi)
                 jump_m = self._rng.uniform(0.3, 1.0)
-                x_m += jump_m * math.cos(angle)
-                y_m += jump_m * math.sin(angle)
+                x_m += jump_m * cos(angle)
+                y_m += jump_m * sin(angle)
             xi, yi = track_to_ips(x_m, y_m, self._layout.ips)
             arrival_ms = int(now_ms + p.ips_latency_s * 1000)
             self._pending.append((arrival_ms, int(round(xi * 1000)), int(round(yi * 1000))))
@@ -168,8 +168,8 @@ class SimRfid:
         length_m = self._layout.loop_length_m
         near = set()
         for shift_m in ((0.0, -length_m, length_m) if length_m else (0.0,)):
-            first = bisect.bisect_left(positions, low_m + shift_m - 1e-9)
-            end = bisect.bisect_right(positions, high_m + shift_m + 1e-9)
+            first = bisect_left(positions, low_m + shift_m - 1e-9)
+            end = bisect_right(positions, high_m + shift_m + 1e-9)
             if first < end:   # mostly none: a tag every metre or so, read within centimetres
                 ahead_m = self._layout.ahead_m
                 for i in range(first, end):

@@ -8,9 +8,9 @@ the authority a board held reached past the true tail of the train ahead (or the
 stranded when it stood still over the run's last STRANDED_S with more than its following reach of true room ahead.
 """
 
-import math
 from array import array
 from collections import deque
+from math import inf, nan, sqrt
 
 from cbtc.authority.rules import following_reach_m
 from cbtc.protocol import wire
@@ -47,7 +47,7 @@ class Recorder:
         self._t_first_s = self._t_last_s = None
         self._moving_last_s = None             # the newest sample at which some train moved
         self._crossings = [[] for _ in range(n)]   # times its travel passed each whole lap
-        self._gap = [[0, 0.0, math.inf] for _ in range(n)]    # true gap to the train ahead: count, sum, least
+        self._gap = [[0, 0.0, inf] for _ in range(n)]    # true gap to the train ahead: count, sum, least
         self._following = [[0, 0.0] for _ in range(n)]       # ... while the train ahead limits it: count, sum
         self._error = [[0, 0.0, 0.0] for _ in range(n)]      # estimate less truth: count, sum of squares, worst
         self._window = [deque() for _ in range(n)]            # (t_s, travelled_m) over the last STRANDED_S
@@ -57,8 +57,8 @@ class Recorder:
         self.overruns = [0] * n
         self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or span
         self._travelled_before = [0.0] * n
-        self.granted_beyond_m = [-math.inf] * n   # worst (highest) granted room less true room while authorised
-        self.room_m = [math.inf] * n             # true room ahead at the newest sample
+        self.granted_beyond_m = [-inf] * n   # worst (highest) granted room less true room while authorised
+        self.room_m = [inf] * n             # true room ahead at the newest sample
         self._colliding = [False] * n
         self._overrun = [False] * n
         self._heard = [[] for _ in range(n)]      # (recv_s, topic, payload) of every report heard: decoded when asked
@@ -197,8 +197,8 @@ class Recorder:
                 samples["constrained"][i].append(constrained)
                 if gap_m is not None and constrained:
                     samples["following_gap_m"][i].append(gap_m)
-                samples["est_s_m"][i].append(math.nan if est is None else est.s_m)
-                samples["est_sigma_m"][i].append(math.nan if est is None else est.sigma_s_m)
+                samples["est_s_m"][i].append(nan if est is None else est.s_m)
+                samples["est_sigma_m"][i].append(nan if est is None else est.sigma_s_m)
         if any_moving:
             self._moving_last_s = now_s
 
@@ -266,7 +266,7 @@ class Recorder:
         count, squares, worst = self._error[i]
         if not count:
             return None
-        return {"rmse_m": math.sqrt(squares / count), "max_abs_m": worst}
+        return {"rmse_m": sqrt(squares / count), "max_abs_m": worst}
 
     def summary(self):
         trains = []
@@ -298,7 +298,7 @@ class Recorder:
         gap_n = sum(g[0] for g in self._gap)
         follow_n = sum(f[0] for f in self._following)
         laps = [t for i in range(len(self.sim.trains)) for t in self.lap_times(i)]
-        beyond = [b for b in self.granted_beyond_m if b > -math.inf]
+        beyond = [b for b in self.granted_beyond_m if b > -inf]
         started = self._t_first_s is not None
         return {
             "layout": self.layout.name,
@@ -337,4 +337,4 @@ def violations(summary) -> list:
 
 
 def _metres(value):
-    return None if value == -math.inf else round(float(value), 4)
+    return None if value == -inf else round(float(value), 4)

@@ -1,7 +1,7 @@
 """Truth of virtual trains: which train is ahead of which, collisions, and how far each board moved past its end
 of authority. The recorder of a simulated run and the virtual trains on a real broker both count collisions here."""
 
-import bisect
+from bisect import bisect_left
 
 from cbtc.authority.fixed_block import FixedBlockPolicy
 
@@ -56,7 +56,7 @@ def protected_all_m(policy, layout, spans) -> list:
     margin_m = policy.params.margin_m
     out = []
     for i, (_id, head, _tail) in enumerate(spans):
-        k = bisect.bisect_left(keys, head)
+        k = bisect_left(keys, head)
         if tails[k % len(tails)][1] == i:   # its own tail: the next one round
             k += 1
         out.append(layout.ahead_m(head, tails[k % len(tails)][0]) - margin_m)

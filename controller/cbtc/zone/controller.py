@@ -15,13 +15,13 @@ is stale. Reports that fail validation, come from unknown trains or do not move 
 and dropped.
 """
 
-import bisect
 import hashlib
-import heapq
 import logging
-import math
 import random
+from bisect import bisect_left, bisect_right, insort
 from dataclasses import dataclass, field, replace
+from heapq import heappop, heappush
+from math import isfinite
 
 from cbtc.authority.rules import (
     AuthorityParams,
@@ -336,7 +336,7 @@ class ZoneController:
         if state.report_recv_s is None:
             self._unheard -= 1
         if state.report_recv_s != recv_s:   # one entry a train in the heap for each receive time
-            heapq.heappush(self._heard, (recv_s, state.rank, state))
+            heappush(self._heard, (recv_s, state.rank, state))
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
         if state.odo_moved:
@@ -424,14 +424,14 @@ class ZoneController:
             for st in moved:
                 old = self._placed.pop(st, None)
                 if old is not None:
-                    i = bisect.bisect_left(self._order, old)
+                    i = bisect_left(self._order, old)
                     del self._order[i]
                     del self._located[i]
                 if st.report is not None and st.estimator.localized:
                     s_m = self._position_m(st)   # may locate it afresh (its filter failed): then None
                     if s_m is not None and st not in self._moved:
                         entry = (s_m, st.rank, st)
-                        i = bisect.bisect_right(self._order, entry)
+                        i = bisect_right(self._order, entry)
                         self._order.insert(i, entry)
                         self._located.insert(i, st)
                         self._placed[st] = entry
@@ -442,7 +442,7 @@ class ZoneController:
         makes its train be located afresh."""
         try:
             est = state.newest_estimate()
-            if est is None or (math.isfinite(est.s_m) and math.isfinite(est.sigma_s_m)):
+            if est is None or (isfinite(est.s_m) and isfinite(est.sigma_s_m)):
                 return None if est is None else est.s_m
             raise ValueError("non-finite estimate")
         except Exception as exc:
@@ -577,7 +577,7 @@ class ZoneController:
         if entry is None:
             return
         all_located = self._all_located(located)
-        i = bisect.bisect_left(self._order, entry)
+        i = bisect_left(self._order, entry)
         self._update(state, self._leader_of(located, i), all_located, now_s)
         if all_located and len(located) > 1 and (i > 0 or self.layout.closed):
             self._update(located[i - 1], state, True, now_s)
@@ -736,7 +736,7 @@ class ZoneController:
             if len(wanting) <= self.fast_slots:
                 return True
         # its place among them, least authority left first (ties by id)
-        return bisect.bisect_left(self._fast_ranked, (state.fast_need_m, state.train_id)) < self.fast_slots
+        return bisect_left(self._fast_ranked, (state.fast_need_m, state.train_id)) < self.fast_slots
 
     @staticmethod
     def _leaving_soon(state, now_s):
@@ -754,11 +754,11 @@ class ZoneController:
         else:
             self._fast_wanting[state.train_id] = state
         state.fast_need_m = need_m
-        bisect.insort(self._fast_ranked, (need_m, state.train_id))
+        insort(self._fast_ranked, (need_m, state.train_id))
 
     def _unrank_fast(self, state):
         ranked = self._fast_ranked
-        del ranked[bisect.bisect_left(ranked, (state.fast_need_m, state.train_id))]
+        del ranked[bisect_left(ranked, (state.fast_need_m, state.train_id))]
 
     def stop_all(self, now_s: float) -> None:
         """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
@@ -778,9 +778,9 @@ class ZoneController:
         if oldest is None:
             return False
         if oldest[2] is state:
-            heapq.heappop(heard)
+            heappop(heard)
             other = self._oldest_heard()
-            heapq.heappush(heard, oldest)
+            heappush(heard, oldest)
             oldest = other
         return oldest is not None and now_s - oldest[0] > self.params.max_leader_age_s
 
@@ -788,7 +788,7 @@ class ZoneController:
         """The heap's top entry once every entry a newer report replaced is dropped from it; None when empty."""
         heard = self._heard
         while heard and heard[0][0] != heard[0][2].report_recv_s:
-            heapq.heappop(heard)
+            heappop(heard)
         return heard[0] if heard else None
 
     def checked_gap_m(self, state, gap_est_m, sigma_m, now_s):
