@@ -1,4 +1,5 @@
-# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py)
+# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the zone's
+# methods that take a train's state take it as a TrainState, so they read its slots directly
 
 cdef class TrainState:
     cdef dict __dict__
@@ -22,3 +23,17 @@ cdef class ZoneController:
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
     cdef public object use_measured_gap, on_command, report_sink, fast_slots
 
+
+    cpdef _take_report(self, TrainState state, payload, recv_s)
+    cpdef _watch_answers(self, TrainState state, recv_s)
+    cpdef _position_m(self, TrainState state)
+    cpdef _update(self, TrainState state, leader, all_located, now_s)
+    cpdef _authorise(self, TrainState state, leader, all_located, now_s)
+    cpdef _took(self, TrainState state, auth)
+    cpdef _answer(self, TrainState state, now_s)
+    cpdef _station_stop(self, TrainState state, now_s)
+    cpdef _command(self, TrainState state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+    cpdef _fast_reports(self, TrainState state, now_s)
+    cpdef _want_fast(self, TrainState state, need_m, now_s)
+    cpdef _unrank_fast(self, TrainState state)
+    cpdef _leader_stale(self, TrainState state, now_s)
