@@ -75,6 +75,23 @@ def test_the_controllers_json_gives_the_standard_librarys_results():
         assert type(got.value) is type(want.value) and str(got.value) == str(want.value)
 
 
+def test_the_controllers_report_encoder_gives_the_boards_bytes():
+    """wire.encode_report here is fast_wire's template; whatever the fields, it gives the payload the board's own
+    encoder gives (its dict written by dumps_compact), falling back to it where a field is not plain."""
+    fast, board = wire.encode_report, wire.encode_report.board_encode
+    assert fast is not board and board.__module__ == wire.__name__
+    base = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3, csid=99,
+                ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990]], faults=["ips_crc"])
+    cases = [{}, {"ips": None, "tags": [], "faults": []}, {"rng": [1000, 250]}, {"faults": ["roll", "undriven"]},
+             {"faults": ["made_up"]}, {"faults": ("roll",)}, {"ips": (1, 2, 3)}, {"ips": [1, True, 3]},
+             {"duty_pct": True}, {"v_mmps": 2.5}, {"seq": 2 ** 40}, {"mode": "fly"}, {"odo_mm": -5, "cseq": -1},
+             {"tags": [["04A1", 5, 6, "0123"]]}, {"rng": None}, {"ips": [1, 2.5, 3]}, {"faults": ["ips_crc", 3]}]
+    for train_id in ("A", "T-12_x", "caf\u00e9", 'q"uote'):
+        for case in cases:
+            fields = dict(base, **case)
+            assert fast(KEY, train_id, BOOT, **fields) == board(KEY, train_id, BOOT, **fields), (train_id, case)
+
+
 def test_report_round_trip():
     msg = wire.decode_report(KEY, "cbtc/train/A/report", report())
     assert msg["odo_mm"] == 1234 and msg["ips"] == [950, 100, -200] and msg["tags"][0][0] == "04A1B2C3D4E5F6"

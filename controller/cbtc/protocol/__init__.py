@@ -25,5 +25,6 @@ wire.__getattr__ = _no_attribute   # everything of wire_zc is attached; the boar
 wire._C_HMAC = fast_wire.hmac_sha256
 wire.json = fast_wire.JSON
 wire.dumps_compact = wire_zc.dumps_compact = fast_wire.dumps_compact
+wire.encode_report = fast_wire.report_encoder(wire, wire_zc)
 
 __all__ = ["telegram", "wire"]

@@ -1,7 +1,7 @@
-"""The controller's versions of three things the board's wire module does, each giving the same bytes or objects for
-less work on CPython: the HMAC, reading a message's JSON and writing a report's. `cbtc.protocol` installs them into
-`wire`, so the zone and the virtual trains running the board's code use them; tests/test_wire.py holds them to the
-standard library's results."""
+"""The controller's versions of four things the board's wire module does, each giving the same bytes or objects for
+less work on CPython: the HMAC, reading a message's JSON, writing a message's JSON and writing a report.
+`cbtc.protocol` installs them into `wire`, so the zone and the virtual trains running the board's code use them;
+tests/test_wire.py holds them to the standard library's results and the board's."""
 
 import hashlib
 import json
@@ -86,3 +86,49 @@ def dumps_compact(msg):
     if _c_encode is None:
         return _compact.encode(msg)
     return "".join(_c_encode(msg, 0))
+
+
+# a report's JSON up to its optional `rng`, as dumps_compact writes it when every integer field is an int and the id
+# and mode need no escaping; the list fields are filled in by _list_json
+_REPORT_JSON = ('{"v":%d,"k":"rep","id":"%s","boot":%d,"seq":%d,"t_ms":%d,"odo_mm":%d,"v_mmps":%d,"duty":%d,'
+                '"mode":"%s","cseq":%d,"csid":%d,"ips":%s,"tags":%s,"flt":%s')
+_INT_ONLY = {int}   # the types of a report's integer fields when every one is an int (a bool is not)
+
+
+def _list_json(value, names):
+    """dumps_compact(value) for a report's list field: written here when it is None, a list of ints or a list of
+    `names` (strings JSON writes unescaped), by dumps_compact otherwise."""
+    if value is None:
+        return "null"
+    if type(value) is list or type(value) is tuple:
+        if not value:
+            return "[]"
+        kinds = set(map(type, value))
+        if kinds == _INT_ONLY:
+            return "[" + ",".join(map(str, value)) + "]"
+        if kinds == {str} and names.issuperset(value):
+            return '["' + '","'.join(value) + '"]'
+    return dumps_compact(value)
+
+
+def report_encoder(wire, wire_zc):
+    """wire.encode_report, giving the same payload from a template where the board's builds a dict and writes it as
+    JSON (a third of the time): every virtual train seals a report 20 to 50 times a second."""
+    board_encode, plain_id = wire.encode_report, wire_zc._plain_id
+    modes, names = frozenset(wire_zc.MODES), frozenset(wire_zc.FAULTS)
+    version, seal, topic_report = wire.VERSION, wire.seal, wire.topic_report
+
+    def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips, tags, faults,
+                      rng=None):
+        if not (set(map(type, (boot, seq, t_ms, odo_mm, v_mmps, duty_pct, cseq, csid))) == _INT_ONLY
+                and type(mode) is str and mode in modes and plain_id(train_id)):
+            return board_encode(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips,
+                                tags, faults, rng)
+        body = _REPORT_JSON % (version, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid,
+                               _list_json(ips, names), _list_json(tags, names), _list_json(faults, names))
+        body += "}" if rng is None else ',"rng":' + _list_json(rng, names) + "}"
+        return seal(key, topic_report(train_id), body.encode())
+
+    encode_report.__doc__ = board_encode.__doc__
+    encode_report.board_encode = board_encode   # the board's own, which tests/test_wire.py holds this one to
+    return encode_report
