@@ -161,8 +161,9 @@ class Path:
     def _project_scalar(self, px, py):
         """`project` of one point over the whole path, on floats: the same candidates (each run's free minimiser
         clipped to the run, then every run's start, then every run's end) taken in the same order, so the same
-        answer, ties included."""
-        found = ([], [], [])   # (distance^2, s) of each run's candidates, by kind as the array version orders them
+        answer, ties included: the first of the nearest, as argmin takes it."""
+        best_d2 = best_s = None
+        bounds = []   # (distance^2, s) of each run's start, then of each run's end: after every free candidate
         for seg, start, length, first, last in self._seg_ends:
             k, x0, y0, h0, cx, cy = seg
             if k == 0.0:
@@ -173,11 +174,19 @@ class Path:
                 swept = ((atan2(py - cy, px - cx) - theta0) * sign) % (2.0 * pi)
                 d_free = swept / abs(k)
             d = min(max(d_free, 0.0), length)
-            free = first if d == 0.0 else last if d == length else _pose_in(seg, d)
-            for kind, (qx, qy, _h), d_m in ((found[0], free, d), (found[1], first, 0.0), (found[2], last, length)):
-                kind.append(((qx - px) ** 2 + (qy - py) ** 2, start + d_m))
-        # the first of the nearest, as argmin takes it
-        return self.wrap(min(found[0] + found[1] + found[2], key=lambda cand: cand[0])[1])
+            qx, qy, _h = first if d == 0.0 else last if d == length else _pose_in(seg, d)
+            d2 = (qx - px) ** 2 + (qy - py) ** 2
+            if best_d2 is None or d2 < best_d2:
+                best_d2, best_s = d2, start + d
+            qx, qy, _h = first
+            bounds.append(((qx - px) ** 2 + (qy - py) ** 2, start + 0.0))
+        for seg, start, length, first, last in self._seg_ends:
+            qx, qy, _h = last
+            bounds.append(((qx - px) ** 2 + (qy - py) ** 2, start + length))
+        for d2, s in bounds:
+            if d2 < best_d2:
+                best_d2, best_s = d2, s
+        return self.wrap(best_s)
 
     def project(self, x_m, y_m, s_hint_m=None, window_m=0.5):
         """Arc length (m) of the point of the path nearest to (x_m, y_m).
