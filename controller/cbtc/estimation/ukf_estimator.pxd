@@ -28,3 +28,5 @@ cdef class UkfEstimator:
 
     @cython.locals(f=TrackUkf, new=_State)
     cpdef _apply(self, _State state, _Event event)
+
+    cpdef on_report(self, dict report, board_clock)

@@ -1,5 +1,7 @@
 # The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the zone's
-# methods that take a train's state take it as a TrainState, so they read its slots directly
+# methods that take a train's state take it as a TrainState, so they read its slots directly; a report is a dict
+
+cimport cython
 
 cdef class TrainState:
     cdef dict __dict__
@@ -24,6 +26,7 @@ cdef class ZoneController:
     cdef public object use_measured_gap, on_command, report_sink, fast_slots
 
 
+    @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)
     cpdef _watch_answers(self, TrainState state, recv_s)
     cpdef _position_m(self, TrainState state)
