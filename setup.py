@@ -1,9 +1,11 @@
 """The compiled build: the modules a report, a command and a simulated tick run through, on a simulated or a real
 broker, compiled by Cython from their unchanged Python source (the same code; `cbtc bench build` measures it beside
-the source: 1.48x on a simulation and on a zone replaying reports). The .pxd files beside some of them make their
+the source: 1.74x on a simulation, 2.02x on a zone replaying reports). The .pxd files beside some of them make their
 hottest classes C types that hold the attributes their methods set in slots, so that self.x is a field read rather
-than a type and a dict lookup; any other attribute still goes to the instance __dict__. Two of them also give the
-locals of the filter's predict and the speed envelope C double types: the same float operations in the same order.
+than a type and a dict lookup; any other attribute still goes to the instance __dict__. Some also type the arguments
+of hot methods (a train's state, a report, the filter's states and events, the recorder's trains), so that their
+fields are read the same way, and give the locals of the filter's predict and the speed envelope C double types: the
+same operations in the same order.
 
 Everything else is in pyproject.toml. Each compiled module is optional: with no C compiler, or CBTC_PURE_BUILD=1, or
 an editable install (so that an edited .py is the code that runs), the package installs as plain Python. At run time

@@ -180,7 +180,7 @@ class Path:
                 best_d2, best_s = d2, start + d
             qx, qy, _h = first
             bounds.append(((qx - px) ** 2 + (qy - py) ** 2, start + 0.0))
-        for seg, start, length, first, last in self._seg_ends:
+        for _seg, start, length, _first, last in self._seg_ends:
             qx, qy, _h = last
             bounds.append(((qx - px) ** 2 + (qy - py) ** 2, start + length))
         for d2, s in bounds:
