@@ -50,7 +50,8 @@ def test_there_are_pxds_for_the_hot_classes():
 @pytest.mark.parametrize("pxd", PXDS, ids=lambda p: str(p.relative_to(ROOT)))
 def test_each_pxd_declares_the_attributes_its_class_sets(pxd):
     classes = declared(pxd)
-    assert classes, f"{pxd} declares no class"
+    # a module's .pxd declares its classes, or only C types for functions of the module (cpdef)
+    assert classes or "cpdef " in pxd.read_text(), f"{pxd} declares no class and no function"
     for name, names in classes.items():
         # a __dict__ for what else an instance is given, a __weakref__ for whoever holds it weakly
         assert {"__dict__", "__weakref__"} <= names, f"{pxd}: {name} keeps no __dict__ or no __weakref__"
