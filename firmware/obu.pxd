@@ -1,4 +1,7 @@
-# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py)
+# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the speed
+# ring's indices are C integers
+
+cimport cython
 
 cdef class OnboardUnit:
     cdef dict __dict__
@@ -11,3 +14,6 @@ cdef class OnboardUnit:
     cdef public object seq, _report_slot_ms, _sent_seq, _sent_t, _ips_fix, _tags
     cdef public object faults, link_ok, _rolled
     # the defaults set in the class body (a smaller heap on the board) stay in __dict__: a C type cannot have both
+
+    @cython.locals(i=cython.Py_ssize_t, k=cython.Py_ssize_t, j=cython.Py_ssize_t)
+    cpdef _sample(self, now_ms)
