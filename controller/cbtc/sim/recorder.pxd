@@ -16,7 +16,6 @@ cdef class Recorder:
     cdef public object rolled_onto, _travelled_before, granted_beyond_m, room_m, _colliding, _overrun
     cdef public object _heard, _reports, _index, _sniffer
 
-
     @cython.locals(train=VirtualTrain, state=TrainState)
     cpdef sample(self, now_s)
 

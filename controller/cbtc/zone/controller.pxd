@@ -25,7 +25,6 @@ cdef class ZoneController:
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
     cdef public object use_measured_gap, on_command, report_sink, fast_slots
 
-
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)
     cpdef _watch_answers(self, TrainState state, recv_s)
