@@ -163,7 +163,7 @@ class Path:
         clipped to the run, then every run's start, then every run's end) taken in the same order, so the same
         answer, ties included: the first of the nearest, as argmin takes it."""
         best_d2 = best_s = None
-        bounds = []   # (distance^2, s) of each run's start, then of each run's end: after every free candidate
+        starts, ends = [], []   # (distance^2, s) of each run's start and end: taken after every free candidate
         for seg, start, length, first, last in self._seg_ends:
             k, x0, y0, h0, cx, cy = seg
             if k == 0.0:
@@ -179,11 +179,10 @@ class Path:
             if best_d2 is None or d2 < best_d2:
                 best_d2, best_s = d2, start + d
             qx, qy, _h = first
-            bounds.append(((qx - px) ** 2 + (qy - py) ** 2, start + 0.0))
-        for _seg, start, length, _first, last in self._seg_ends:
+            starts.append(((qx - px) ** 2 + (qy - py) ** 2, start + 0.0))
             qx, qy, _h = last
-            bounds.append(((qx - px) ** 2 + (qy - py) ** 2, start + length))
-        for d2, s in bounds:
+            ends.append(((qx - px) ** 2 + (qy - py) ** 2, start + length))
+        for d2, s in starts + ends:
             if d2 < best_d2:
                 best_d2, best_s = d2, s
         return self.wrap(best_s)
