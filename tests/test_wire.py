@@ -37,7 +37,7 @@ def test_a_message_macd_again_is_looked_up_and_the_memory_of_them_is_bounded():
     """A message MACed twice in one process (sealed, then checked, in a simulation) is hashed once: the second MAC
     comes from what the first left, and equals the standard library's; a key that differs is hashed anew; the
     messages kept stay under their bound whatever the traffic."""
-    fast_wire.remember_macs()   # as a simulation does
+    fast_wire.remember_sealed()   # as a simulation does
     msg = b"a/report\n" + os.urandom(40)
     first = fast_wire.hmac_sha256(KEY, msg)
     assert (KEY, msg) in fast_wire._RECENT
@@ -90,6 +90,67 @@ def test_the_controllers_report_encoder_gives_the_boards_bytes():
         for case in cases:
             fields = dict(base, **case)
             assert fast(KEY, train_id, BOOT, **fields) == board(KEY, train_id, BOOT, **fields), (train_id, case)
+
+
+def test_the_controllers_command_encoder_gives_the_boards_bytes():
+    """wire.encode_command here is fast_wire's; whatever the fields, it gives the payload the board's own encoder
+    gives, with a simulation's memory of the messages written on or off."""
+    fast, board = wire.encode_command, wire.encode_command.board_encode
+    assert fast is not board and board.__module__ == "cbtc.firmware.wire_zc"
+    base = (BOOT, 5, 99, 7, 500, 3000, 800, 600, 800)
+    cases = [((), {}), ((), {"stop_mm": 2500, "rpt_ms": 40, "odo_mm_per_m": 1015}), ((), {"stop_mm": None}),
+             ((True,), {}), ((2.5,), {}), ((-(2 ** 40),), {}), ((), {"rpt_ms": False})]
+    for remember in (None, {}):
+        saved, fast_wire._WRITTEN = fast_wire._WRITTEN, remember
+        try:
+            for train_id in ("A", "T-12_x", "caf\u00e9", 'q"uote'):
+                for extra, kwargs in cases:
+                    args = base[:-len(extra) or None] + extra
+                    assert fast(KEY, train_id, *args, **kwargs) == board(KEY, train_id, *args, **kwargs)
+        finally:
+            fast_wire._WRITTEN = saved
+
+
+def same(a, b):
+    """a and b are equal and of the same types all through, dict keys in the same order."""
+    if type(a) is not type(b):
+        return False
+    if type(a) is dict:
+        return list(a) == list(b) and all(same(a[k], b[k]) for k in a)
+    if type(a) is list:
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+def test_a_simulation_reads_each_message_it_wrote_as_json_reads_it_once():
+    """After remember_sealed(), a report or command body written here is read back (once) as the object json.loads
+    gives for it, a fresh one; a body read again, or never written here, is scanned; the memory stays bounded."""
+    saved = fast_wire._RECENT, fast_wire._WRITTEN
+    fast_wire._RECENT, fast_wire._WRITTEN = {}, {}
+    try:
+        ips = [950, 100, -200]
+        plain = [report(ips=ips, tags=[], faults=["roll", "undriven"], rng=[1000, 250]),
+                 report(ips=None, tags=None, faults=()), report(ips=(1, 2, 3), tags=(), rng=(4, 5)),
+                 wire.encode_command(KEY, "A", BOOT, 5, 99, 7, 500, 3000, 800, 600, 800),
+                 wire.encode_command(KEY, "A", BOOT, 6, 99, 7, 500, -3000, 800, 600, 800, stop_mm=-2500, rpt_ms=40)]
+        odd = [report(), report(tags=[], duty_pct=True), report(tags=[], faults=["made_up"]),
+               report(tags=[], ips=[1, 2.5, 3]),
+               wire.encode_command(KEY, "A", BOOT, 7, 99, 7, True, 3000, 800, 600, 800)]
+        ips.append(4)   # the caller's list, changed after its report is written: the report read keeps its ips
+        for payload in plain + odd:
+            body = payload[:payload.rfind(b"#")]
+            assert (body in fast_wire._WRITTEN) == (payload in plain), body
+            got = fast_wire.loads(bytes(body))
+            assert same(got, json.loads(body)), body
+            assert body not in fast_wire._WRITTEN
+            got.clear()
+            assert same(fast_wire.loads(body), json.loads(body)), "read again: scanned, the same object"
+        assert same(fast_wire.loads(bytearray(b'{"a":[1]}')), {"a": [1]}), "an unhashable input is scanned"
+        for i in range(3 * fast_wire._RECENT_MAX):
+            wire.encode_command(KEY, "A", BOOT, i, 99, 7, 500, 3000, 800, 600, 800)
+        assert 0 < len(fast_wire._WRITTEN) <= fast_wire._RECENT_MAX
+    finally:
+        fast_wire._RECENT, fast_wire._WRITTEN = saved
 
 
 def test_report_round_trip():

@@ -26,5 +26,6 @@ wire._C_HMAC = fast_wire.hmac_sha256
 wire.json = fast_wire.JSON
 wire.dumps_compact = wire_zc.dumps_compact = fast_wire.dumps_compact
 wire.encode_report = fast_wire.report_encoder(wire, wire_zc)
+wire.encode_command = wire_zc.encode_command = fast_wire.command_encoder(wire, wire_zc)
 
 __all__ = ["telegram", "wire"]

@@ -1,7 +1,8 @@
-"""The controller's versions of four things the board's wire module does, each giving the same bytes or objects for
-less work on CPython: the HMAC, reading a message's JSON, writing a message's JSON and writing a report.
-`cbtc.protocol` installs them into `wire`, so the zone and the virtual trains running the board's code use them;
-tests/test_wire.py holds them to the standard library's results and the board's."""
+"""The controller's versions of five things the board's wire module does, each giving the same bytes or objects for
+less work on CPython: the HMAC, reading a message's JSON, writing a message's JSON, writing a report and writing a
+command. `cbtc.protocol` installs them into `wire`, so the zone and the virtual trains running the board's code use
+them; tests/test_wire.py holds them to the standard library's results and the board's. A simulation, which writes
+every message it reads, also keeps each message's MAC and object from its writing to its reading (remember_sealed)."""
 
 import hashlib
 import json
@@ -11,17 +12,26 @@ from json import encoder as _encoder
 _KEYED = {}   # key -> (inner, outer): SHA-256 states that have taken the key's two padded blocks
 
 
-_RECENT = None   # once remember_macs() is called: (key, message) -> its MAC, for messages MACed once lately
+_RECENT = None   # once remember_sealed() is called: (key, message) -> its MAC, for messages MACed once lately
 _RECENT_MAX = 256
+_WRITTEN = None  # once remember_sealed() is called: a body written here lately -> the object json.loads gives for it
 
 
-def remember_macs():
-    """Keep each message's MAC until the message is MACed again, for a process that seals and checks the same
-    messages (a simulation's boards and zone): each is then hashed once. A live zone checks messages it did not seal
-    and seals messages it does not check, so it does not call this: the memory would only cost it time."""
-    global _RECENT
+def remember_sealed():
+    """Keep each message's MAC until the message is MACed again, and the object each report or command body written
+    here stands for until it is read: for a process that seals and checks the same messages (a simulation's boards
+    and zone), each is then hashed once and its JSON never scanned. A live zone checks messages it did not seal and
+    seals messages it does not check, so it does not call this: the memory would only cost it time."""
+    global _RECENT, _WRITTEN
     if _RECENT is None:
-        _RECENT = {}
+        _RECENT, _WRITTEN = {}, {}
+
+
+def _written(body, msg):
+    """Remember that `body` reads as `msg` (a fresh object no one else holds), for loads to hand out once."""
+    if len(_WRITTEN) >= _RECENT_MAX:   # bodies never read (their message lost on the way): forgotten
+        _WRITTEN.clear()
+    _WRITTEN[body] = msg
 
 
 def hmac_sha256(key, msg, _digest_name="sha256"):
@@ -29,7 +39,7 @@ def hmac_sha256(key, msg, _digest_name="sha256"):
     key's padded blocks once: each message costs two copies and two short hashes, half of hmac.digest's time (it
     hashes both padded blocks again every message; a zone seals and checks two or three messages a report). The
     padding is wire.hmac_sha256_hashlib's, written inline there: as a function of its own it costs the board 224 B
-    of a heap at its limit. After remember_macs(), a message MACed a second time is looked up instead."""
+    of a heap at its limit. After remember_sealed(), a message MACed a second time is looked up instead."""
     recent = _RECENT
     if recent is not None:
         mac = recent.pop((key, msg), None)
@@ -60,7 +70,13 @@ _scan_once = json.decoder.JSONDecoder().scan_once
 def loads(data):
     """json.loads(data), the same object or the same error: a message's ASCII body is read by json's own C scanner
     at once, without the detours of loads (finding the encoding, skipping whitespace); any other input (whitespace
-    around the value, another encoding, bad JSON) goes through json.loads itself."""
+    around the value, another encoding, bad JSON) goes through json.loads itself. After remember_sealed(), a body
+    written here is not scanned: the object it stands for, made as it was written, is handed out (once: a second
+    read scans)."""
+    if _WRITTEN is not None and type(data) is bytes:
+        msg = _WRITTEN.pop(data, None)
+        if msg is not None:
+            return msg
     try:
         text = data.decode("ascii")
         value, end = _scan_once(text, 0)
@@ -95,25 +111,30 @@ _REPORT_JSON = ('{"v":%d,"k":"rep","id":"%s","boot":%d,"seq":%d,"t_ms":%d,"odo_m
 _INT_ONLY = {int}   # the types of a report's integer fields when every one is an int (a bool is not)
 
 
+_ODD = object()   # _list_json's reading of a value dumps_compact writes: not remembered
+
+
 def _list_json(value, names):
-    """dumps_compact(value) for a report's list field: written here when it is None, a list of ints or a list of
-    `names` (strings JSON writes unescaped), by dumps_compact otherwise."""
+    """(dumps_compact(value), a fresh copy of what json.loads reads back from it) for a report's list field when it
+    is None, a list of ints or a list of `names` (strings JSON writes unescaped); (dumps_compact(value), _ODD)
+    otherwise."""
     if value is None:
-        return "null"
+        return "null", None
     if type(value) is list or type(value) is tuple:
         if not value:
-            return "[]"
+            return "[]", []
         kinds = set(map(type, value))
         if kinds == _INT_ONLY:
-            return "[" + ",".join(map(str, value)) + "]"
+            return "[" + ",".join(map(str, value)) + "]", list(value)
         if kinds == {str} and names.issuperset(value):
-            return '["' + '","'.join(value) + '"]'
-    return dumps_compact(value)
+            return '["' + '","'.join(value) + '"]', list(value)
+    return dumps_compact(value), _ODD
 
 
 def report_encoder(wire, wire_zc):
     """wire.encode_report, giving the same payload from a template where the board's builds a dict and writes it as
-    JSON (a third of the time): every virtual train seals a report 20 to 50 times a second."""
+    JSON (a third of the time): every virtual train seals a report 20 to 50 times a second. After remember_sealed(),
+    the report a plain body stands for is remembered for loads."""
     board_encode, plain_id = wire.encode_report, wire_zc._plain_id
     modes, names = frozenset(wire_zc.MODES), frozenset(wire_zc.FAULTS)
     version, seal, topic_report = wire.VERSION, wire.seal, wire.topic_report
@@ -124,11 +145,49 @@ def report_encoder(wire, wire_zc):
                 and type(mode) is str and mode in modes and plain_id(train_id)):
             return board_encode(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips,
                                 tags, faults, rng)
+        ips_json, ips = _list_json(ips, names)
+        tags_json, tags = _list_json(tags, names)
+        faults_json, faults = _list_json(faults, names)
         body = _REPORT_JSON % (version, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid,
-                               _list_json(ips, names), _list_json(tags, names), _list_json(faults, names))
-        body += "}" if rng is None else ',"rng":' + _list_json(rng, names) + "}"
-        return seal(key, topic_report(train_id), body.encode())
+                               ips_json, tags_json, faults_json)
+        if rng is None:
+            body = (body + "}").encode()
+        else:
+            rng_json, rng = _list_json(rng, names)
+            body = (body + ',"rng":' + rng_json + "}").encode()
+        if _WRITTEN is not None and ips is not _ODD and tags is not _ODD and faults is not _ODD and rng is not _ODD:
+            msg = {"v": version, "k": "rep", "id": train_id, "boot": boot, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
+                   "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "csid": csid, "ips": ips,
+                   "tags": tags, "flt": faults}
+            if rng is not None:
+                msg["rng"] = rng
+            _written(body, msg)
+        return seal(key, topic_report(train_id), body)
 
     encode_report.__doc__ = board_encode.__doc__
     encode_report.board_encode = board_encode   # the board's own, which tests/test_wire.py holds this one to
     return encode_report
+
+
+def command_encoder(wire, wire_zc):
+    """wire_zc.encode_command, the same payload; after remember_sealed(), the command a plain body stands for is
+    remembered for loads (a zone sends one for most reports)."""
+    board_encode, plain_id, template = wire_zc.encode_command, wire_zc._plain_id, wire_zc._COMMAND_JSON
+    version, seal, topic_command = wire.VERSION, wire.seal, wire.topic_command
+
+    def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2,
+                       stop_mm=None, rpt_ms=0, odo_mm_per_m=1000):
+        if stop_mm is None:
+            stop_mm = eoa_mm
+        ints = (boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm, rpt_ms, odo_mm_per_m)
+        if _WRITTEN is None or not (set(map(type, ints)) == _INT_ONLY and plain_id(train_id)):
+            return board_encode(key, train_id, *ints)
+        body = (template % ((version, train_id) + ints)).encode()
+        _written(body, {"v": version, "k": "cmd", "id": train_id, "boot": boot, "seq": seq, "sid": sid, "rseq": rseq,
+                        "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
+                        "stop_mm": stop_mm, "rpt_ms": rpt_ms, "odo_mm_per_m": odo_mm_per_m})
+        return seal(key, topic_command(train_id), body)
+
+    encode_command.__doc__ = board_encode.__doc__
+    encode_command.board_encode = board_encode   # the board's own, which tests/test_wire.py holds this one to
+    return encode_command

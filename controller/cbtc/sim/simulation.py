@@ -25,7 +25,7 @@ class Simulation:
 
     def __init__(self, config: ScenarioConfig, keep_reports: bool = False, keep_samples: bool = False):
         self.config = config
-        fast_wire.remember_macs()   # the boards and the zone here seal and check the same messages: hashed once
+        fast_wire.remember_sealed()   # the boards and the zone here seal and read the same messages: hashed once
         layout = config.layout
         ids = [t.train_id for t in config.trains]
         if len(set(ids)) != len(ids):
