@@ -13,7 +13,7 @@ import functools
 import random
 from dataclasses import dataclass
 
-from cbtc.bus.client import BusClient, topic_matches, validate_filter, validate_topic
+from cbtc.bus.client import topic_matches, validate_filter, validate_topic
 from cbtc.errors import BusError
 
 # (filter, topic) -> match: a simulation uses a few dozen topics and filters, each matched at every message
@@ -75,8 +75,9 @@ class _Subscriptions(dict):
         self._callbacks.clear()
 
 
-class MockClient(BusClient):
-    """One connection to a `MockBroker`; made by `MockBroker.connect`, implements `cbtc.bus.client.BusClient`."""
+class MockClient:
+    """One connection to a `MockBroker`; made by `MockBroker.connect`, implements `cbtc.bus.client.BusClient` (a
+    Protocol: an instance passes isinstance without the class deriving from it, which a C type could not)."""
 
     def __init__(self, broker, client_id, will, up, down, keepalive_s):
         self._broker = broker
@@ -104,7 +105,8 @@ class MockClient(BusClient):
         validate_topic(topic)
         if not isinstance(payload, (bytes, bytearray)):
             raise TypeError(f"payload on {topic} must be bytes, got {type(payload).__name__}")
-        self._broker._from_client(self, topic, bytes(payload), retain)
+        broker = self._broker
+        broker._from_client(self, topic, bytes(payload), retain)
 
     def subscribe(self, topic_filter, callback):
         """Subscribe (retained matches are sent at once); ignored while disconnected, as the session is lost anyway."""
