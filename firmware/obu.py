@@ -16,6 +16,9 @@ try:
 except ImportError:
     import wire  # a board holds the firmware's modules at the top level
 
+# board-time arithmetic, named once: the loop compares times every pass (a module's attribute is looked up per use)
+wrap_add, wrap_diff = wire.wrap_add, wire.wrap_diff
+
 try:
     from micropython import const
 except ImportError:  # CPython
@@ -170,24 +173,24 @@ class OnboardUnit:
                                      % (cmd["boot"], self.boot_id))
             sid = cmd["sid"]
             if sid == self.sid:
-                if wire.wrap_diff(cmd["seq"], self.cseq) <= 0:
+                if wrap_diff(cmd["seq"], self.cseq) <= 0:
                     raise wire.WireError("replayed command: seq %d of session %d is not after %d"
                                          % (cmd["seq"], sid, self.cseq))
             elif sid in self._left_sids:
                 raise wire.WireError("command of session %d, which this board has left for session %d"
                                      % (sid, self.sid))
-            elif self.cmd is not None and wire.wrap_diff(cmd["rseq"], self.cmd["rseq"]) <= 0:
+            elif self.cmd is not None and wrap_diff(cmd["rseq"], self.cmd["rseq"]) <= 0:
                 raise wire.WireError("new session %d is based on report %d, not after session %d's report %d"
                                      % (sid, cmd["rseq"], self.sid, self.cmd["rseq"]))
             slot = cmd["rseq"] % _HISTORY
             if self._sent_seq[slot] != cmd["rseq"]:
                 raise wire.WireError("stale command: it is based on report %d, which is not among our last %d"
                                      % (cmd["rseq"], _HISTORY))
-            age_ms = wire.wrap_diff(now_ms, self._sent_t[slot])
+            age_ms = wrap_diff(now_ms, self._sent_t[slot])
             if age_ms > self.cfg["max_data_age_ms"]:
                 raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)"
                                      % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
-            if self.enc_fail_ms is not None and wire.wrap_diff(self._sent_t[slot], self.enc_fail_ms) <= 0:
+            if self.enc_fail_ms is not None and wrap_diff(self._sent_t[slot], self.enc_fail_ms) <= 0:
                 raise wire.WireError("based on a report before the encoder failed")   # its odometer is lost
             if cmd["eoa_mm"] - self.odo_mm > self.cfg["max_authority_mm"]:   # no line is that long: a zone error
                 raise wire.WireError("eoa over max_authority_mm ahead")
@@ -202,11 +205,11 @@ class OnboardUnit:
             self.sid = sid
         self.cseq = cmd["seq"]
         self.cmd = cmd
-        self.cmd_expiry_ms = wire.wrap_add(self._sent_t[slot], cmd["ttl_ms"])
+        self.cmd_expiry_ms = wrap_add(self._sent_t[slot], cmd["ttl_ms"])
         self.eoa_mm = cmd["eoa_mm"]
 
     def command_valid(self, now_ms):
-        return self.cmd is not None and wire.wrap_diff(now_ms, self.cmd_expiry_ms) < 0
+        return self.cmd is not None and wrap_diff(now_ms, self.cmd_expiry_ms) < 0
 
     # --- the loop -----------------------------------------------------------------------------------------------
 
@@ -214,8 +217,8 @@ class OnboardUnit:
         """One pass of the loop at board time `now_ms` (ms, modulo 2^30: wire.wrap_diff compares board times)."""
         if self._last_step_ms is None:   # the first pass: the board's times start now, whatever its clock reads
             self._last_step_ms = self._last_move_ms = now_ms
-            self._report_slot_ms = wire.wrap_add(now_ms, -self.cfg["report_ms"])
-        dt_s = wire.wrap_diff(now_ms, self._last_step_ms) / 1000.0
+            self._report_slot_ms = wrap_add(now_ms, -self.cfg["report_ms"])
+        dt_s = wrap_diff(now_ms, self._last_step_ms) / 1000.0
         self._last_step_ms = now_ms
         self._sample(now_ms)
         # after a stall (a WiFi reconnect, a long collection) the loop did not act in between: its reference ramp,
@@ -231,10 +234,10 @@ class OnboardUnit:
         period = self.cfg["report_ms"]
         if self.command_valid(now_ms) and self.cmd["rpt_ms"]:
             period = self.cmd["rpt_ms"]
-        due = wire.wrap_add(self._report_slot_ms, period)
-        if wire.wrap_diff(now_ms, due) >= 0:
+        due = wrap_add(self._report_slot_ms, period)
+        if wrap_diff(now_ms, due) >= 0:
             self._report(now_ms)
-            self._report_slot_ms = due if wire.wrap_diff(wire.wrap_add(due, period), now_ms) > 0 else now_ms
+            self._report_slot_ms = due if wrap_diff(wrap_add(due, period), now_ms) > 0 else now_ms
 
     def _sensor_failed(self, name, exc):
         self.sensor_errors += 1
@@ -392,7 +395,7 @@ class OnboardUnit:
     def _control(self, now_ms, dt_s):
         cfg = self.cfg
         # collision guard: a fresh measured gap below guard_limit_mm brakes whatever the commands say
-        if (self.gap_mm is not None and wire.wrap_diff(now_ms, self.gap_t_ms) <= cfg["guard_fresh_ms"]
+        if (self.gap_mm is not None and wrap_diff(now_ms, self.gap_t_ms) <= cfg["guard_fresh_ms"]
                 and self.gap_mm < self.guard_limit_mm()):
             if not self.guard_on:
                 self.guard_trips += 1
@@ -403,7 +406,7 @@ class OnboardUnit:
         if self.guard_on:
             self.guard_on = False
         if self.enc_fail_ms is not None:   # a failed encoder: braked until _ENC_HOLD_MS after its last sign
-            if wire.wrap_diff(now_ms, self.enc_fail_ms) < _ENC_HOLD_MS:
+            if wrap_diff(now_ms, self.enc_fail_ms) < _ENC_HOLD_MS:
                 self.mode = "trip"
                 self._brake()
                 return
@@ -509,13 +512,13 @@ class OnboardUnit:
     def _report(self, now_ms):
         faults = []
         last_fix = getattr(self.ips, "last_fix_ms", None)
-        if last_fix is None or wire.wrap_diff(now_ms, last_fix) > self.cfg["ips_silent_ms"]:
+        if last_fix is None or wrap_diff(now_ms, last_fix) > self.cfg["ips_silent_ms"]:
             faults.append("ips_silent")
         if getattr(self.ips, "crc_errors", 0):
             faults.append("ips_crc")
         if not getattr(self.rfid, "present", True):
             faults.append("rfid_absent")
-        if self.duty_pct > 30 and wire.wrap_diff(now_ms, self._last_move_ms) > self.cfg["stall_ms"]:
+        if self.duty_pct > 30 and wrap_diff(now_ms, self._last_move_ms) > self.cfg["stall_ms"]:
             faults.append("enc_stall")
         if self.enc_fail_ms is not None:
             faults.append("enc_fail")
@@ -548,7 +551,7 @@ class OnboardUnit:
         payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
                                      duty_pct, self.mode, self.cseq, self.sid, self._ips_fix,
                                      self._tags, self.faults, self._rng_report)
-        self.seq = wire.wrap_add(seq, 1)
+        self.seq = wrap_add(seq, 1)
         self._ips_fix = None
         if self._rng_report is not None:
             self._rng_report = None

@@ -4,6 +4,8 @@ from cbtc.frozen import frozen_value
 from cbtc.protocol import wire
 from cbtc.railway.geometry import circular_offset_m
 
+wrap_diff = wire.wrap_diff   # named once: a module's attribute is looked up at every use
+
 
 def span_offsets_m(layout, span, s_m: float):
     """A span of track positions (low, high) as (behind <= 0, ahead >= 0) offsets from position `s_m` on `layout`,
@@ -54,13 +56,13 @@ class BoardClock:
         """`board_ms` (a wire time near the newest observed) on the board's own unwrapped time line (s)."""
         if self._ref_ms is None:
             raise ValueError("BoardClock: no report observed yet")
-        return (self._ref_unwrapped_ms + wire.wrap_diff(board_ms, self._ref_ms)) / 1000.0
+        return (self._ref_unwrapped_ms + wrap_diff(board_ms, self._ref_ms)) / 1000.0
 
     def observe(self, board_ms: int, recv_s: float) -> None:
         if self._ref_ms is None:
             self._ref_ms, self._ref_unwrapped_ms = board_ms, board_ms
         else:
-            ahead_ms = wire.wrap_diff(board_ms, self._ref_ms)
+            ahead_ms = wrap_diff(board_ms, self._ref_ms)
             if ahead_ms > 0:
                 self._ref_ms, self._ref_unwrapped_ms = board_ms, self._ref_unwrapped_ms + ahead_ms
         candidate = recv_s - self.board_s(board_ms)

@@ -13,6 +13,8 @@ after the last one taken from it (what it sent before the restart is a replay).
 
 from cbtc.protocol import wire
 
+wrap_diff = wire.wrap_diff   # named once: a module's attribute is looked up at every use
+
 LEFT_BOOTS = 16          # boots remembered as left: their recorded reports are refused
 UPTIME_SLACK_S = 0.5     # a new boot's uptime may exceed the silence by this, plus 2 % of it (clock rates differ)
 
@@ -31,12 +33,12 @@ class BootTracker:
         """Why `report` (received at `recv_s`) must be dropped, or "" if it moves the picture forward."""
         boot = report["boot"]
         if boot == self.boot:
-            if self.last_seq is not None and wire.wrap_diff(report["seq"], self.last_seq) <= 0:
+            if self.last_seq is not None and wrap_diff(report["seq"], self.last_seq) <= 0:
                 return f"report seq {report['seq']} not after {self.last_seq} (replayed or reordered)"
             return ""
         if boot in self.left:
             return f"report of boot {boot}, which this train has left (replayed from before a restart)"
-        if boot == self._leaving and wire.wrap_diff(report["seq"], self._leaving_seq) <= 0:
+        if boot == self._leaving and wrap_diff(report["seq"], self._leaving_seq) <= 0:
             return f"report seq {report['seq']} of boot {boot}, the boot before the restart (a replay)"
         if self.answered and self.last_recv_s is not None:
             silence_s = recv_s - self.last_recv_s

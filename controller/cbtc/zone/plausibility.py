@@ -10,6 +10,8 @@ STAMP_WINDOW_MS before it is not a measurement of this report, and is dropped.
 
 from cbtc.protocol import wire
 
+wrap_diff = wire.wrap_diff   # named once: a module's attribute is looked up at every use
+
 CLOCK_SLACK_S = 0.5      # board time may run ahead of receive time by this, plus CLOCK_RATE of it (transit jitter)
 CLOCK_RATE = 0.02
 SPEED_FACTOR = 2.0       # no train runs twice its motor's unloaded speed
@@ -21,14 +23,14 @@ SEQ_SLACK = 10
 
 def time_refusal(report: dict, previous: dict, recv_s: float, previous_recv_s: float) -> str:
     """Why `report`'s board time cannot follow `previous`'s (the same boot, received at `previous_recv_s`), or ""."""
-    ahead_ms = wire.wrap_diff(report["t_ms"], previous["t_ms"])
+    ahead_ms = wrap_diff(report["t_ms"], previous["t_ms"])
     if ahead_ms < 0:
         return f"board time ran back {-ahead_ms} ms from the previous report"
     silence_s = max(0.0, recv_s - previous_recv_s)
     if ahead_ms / 1000.0 > silence_s * (1.0 + CLOCK_RATE) + CLOCK_SLACK_S:
         return (f"board time ran {ahead_ms / 1000.0:.1f} s ahead in {silence_s:.1f} s of the controller's "
                 f"(a board clock runs no faster)")
-    skipped = wire.wrap_diff(report["seq"], previous["seq"])
+    skipped = wrap_diff(report["seq"], previous["seq"])
     if skipped > ahead_ms // MIN_REPORT_MS + SEQ_SLACK:
         return f"report seq {report['seq']} skips {skipped} reports in {ahead_ms} ms of board time"
     return ""
@@ -36,13 +38,13 @@ def time_refusal(report: dict, previous: dict, recv_s: float, previous_recv_s: f
 
 def odometer_jump_mm(report: dict, previous: dict, v_noload_mps: float) -> int:
     """How far (mm) `report`'s odometer moved beyond what the train could travel since `previous`; 0 if it could."""
-    dt_s = max(0, wire.wrap_diff(report["t_ms"], previous["t_ms"])) / 1000.0
+    dt_s = max(0, wrap_diff(report["t_ms"], previous["t_ms"])) / 1000.0
     reach_mm = SPEED_FACTOR * v_noload_mps * 1000.0 * dt_s + ODO_SLACK_MM
     return max(0, int(abs(report["odo_mm"] - previous["odo_mm"]) - reach_mm))
 
 
 def _stamped_ok(t_ms: int, report_t_ms: int) -> bool:
-    return 0 <= wire.wrap_diff(report_t_ms, t_ms) <= STAMP_WINDOW_MS
+    return 0 <= wrap_diff(report_t_ms, t_ms) <= STAMP_WINDOW_MS
 
 
 def plausible_parts(report: dict, previous_odo_mm) -> tuple:
