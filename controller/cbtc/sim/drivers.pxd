@@ -1,4 +1,7 @@
-# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py)
+# The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the RFID
+# reader's search for tags in range runs on C doubles and indices
+
+cimport cython
 
 cdef class SimEncoder:
     cdef dict __dict__
@@ -16,6 +19,10 @@ cdef class SimRfid:
     cdef object __weakref__
     cdef public object _profile, _layout, _rng, _inside, _images, _tag_s_m
     cdef public object _tag_index, present, wrong_tag, data, _s_m
+
+    @cython.locals(range_m=cython.double, s_m=cython.double, low_m=cython.double, high_m=cython.double,
+                   shift_m=cython.double, first=cython.Py_ssize_t, end=cython.Py_ssize_t, i=cython.Py_ssize_t)
+    cpdef _near(self)
 
 cdef class SimMotor:
     cdef dict __dict__
