@@ -163,9 +163,10 @@ def seal(key, topic, body):
 def check_ints(values, specs, topic, field=None):
     """Check integers against `specs`, flat (name, lo, hi) triples: the message's named fields (`field` None), or
     the elements of the list in message field `field`, in order."""
+    get = values.get if field is None else None   # a message's dict: its lookup found once, not at every field
     for i in range(0, len(specs), 3):
         name = specs[i]
-        value = values.get(name) if field is None else values[i // 3]
+        value = get(name) if field is None else values[i // 3]
         if type(value) is not int or not specs[i + 1] <= value <= specs[i + 2]:   # a bool is not an integer here
             raise WireError("field %r on %s must be an integer in [%d, %d], got %r"   # a list item: ('ips', 'x_mm')
                             % (name if field is None else (field, name), topic, specs[i + 1], specs[i + 2], value))
