@@ -187,7 +187,7 @@ def report_encoder(wire, wire_zc):
 def command_encoder(wire, wire_zc):
     """wire_zc.encode_command, the same payload; after remember_sealed(), the command a plain body stands for is
     remembered for loads (a zone sends one for most reports)."""
-    board_encode, plain_id, template = wire_zc.encode_command, wire_zc._plain_id, wire_zc._COMMAND_JSON
+    board_encode, plain_body = wire_zc.encode_command, wire_zc._plain_command_body
     version, seal, topic_command = wire.VERSION, wire.seal, wire.topic_command
 
     def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2,
@@ -195,9 +195,10 @@ def command_encoder(wire, wire_zc):
         if stop_mm is None:
             stop_mm = eoa_mm
         ints = (boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm, rpt_ms, odo_mm_per_m)
-        if _WRITTEN is None or not (set(map(type, ints)) == _INT_ONLY and plain_id(train_id)):
+        text = None if _WRITTEN is None else plain_body(train_id, ints)
+        if text is None:
             return board_encode(key, train_id, *ints)
-        body = (template % ((version, train_id) + ints)).encode()
+        body = text.encode()
         _written(body, {"v": version, "k": "cmd", "id": train_id, "boot": boot, "seq": seq, "sid": sid, "rseq": rseq,
                         "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
                         "stop_mm": stop_mm, "rpt_ms": rpt_ms, "odo_mm_per_m": odo_mm_per_m})
