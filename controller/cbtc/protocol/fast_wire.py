@@ -29,11 +29,17 @@ def remember_sealed():
         _RECENT, _WRITTEN = {}, {}
 
 
+def _remember(table, key, value):
+    """Keep `value` under `key` in `table` (_RECENT or _WRITTEN) until it is taken; a table at _RECENT_MAX starts
+    again empty: what it held was never taken (its message lost on the way)."""
+    if len(table) >= _RECENT_MAX:
+        table.clear()
+    table[key] = value
+
+
 def _written(body, msg):
     """Remember that `body` reads as `msg` (a fresh object no one else holds), for loads to hand out once."""
-    if len(_WRITTEN) >= _RECENT_MAX:   # bodies never read (their message lost on the way): forgotten
-        _WRITTEN.clear()
-    _WRITTEN[body] = msg
+    _remember(_WRITTEN, body, msg)
 
 
 def hmac_sha256(key, msg, _digest_name="sha256"):
@@ -69,9 +75,7 @@ def sealer(wire):
                 return payload
         payload = body + b"#" + hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:mac_bytes])
         if recent is not None:
-            if len(recent) >= _RECENT_MAX:   # payloads never checked (their copy lost on the way): forgotten
-                recent.clear()
-            recent[(key, topic, body)] = payload
+            _remember(recent, (key, topic, body), payload)
         return payload
 
     seal.__doc__ = wire.seal.__doc__
