@@ -16,7 +16,8 @@ COLUMNS = [("policy", "system"), ("mean_gap_m", "mean gap m"), ("mean_gap_follow
 
 
 FOLLOWING_COLUMNS = [("v", "B m/s"), ("report_ms", "reports ms"), ("achieved", "gap m"), ("theoretical", "S_min m"),
-                     ("ratio", "ratio"), ("floor", "floor"), ("leader_moved", "leader moved"), ("k_sigma", "k sigma"),
+                     ("ratio", "ratio"), ("lowest", "lowest"), ("floor", "floor"), ("fresh_floor", "fresh floor"),
+                     ("leader_moved", "leader moved"), ("k_sigma", "k sigma"),
                      ("estimates", "estimates"), ("stop_window", "stop window"), ("inside_curve", "inside curve"),
                      ("trips", "trips")]
 
@@ -24,6 +25,7 @@ FOLLOWING_COLUMNS = [("v", "B m/s"), ("report_ms", "reports ms"), ("achieved", "
 def _following_row(f):
     row = {"v": f["follower_speed_mps"], "report_ms": f["report_ms"], "achieved": f["achieved_gap_m"],
            "theoretical": f["theoretical_min_gap_m"], "ratio": f["achieved_over_theoretical"],
+           "lowest": f["lowest_over_theoretical"], "fresh_floor": f["fresh_floor_ratio"],
            "trips": f["emergency_trips"]}
     for name, metres in f["overhead_budget_m"].items():
         row[name[:-2]] = round(100.0 * metres, 2)
@@ -159,9 +161,10 @@ def run(args):
               f"{a['top_speed_mps']} m/s (line {a['line_speed_mps']}); stops {a['stop_error_mean_mm']} mm from the "
               f"mark on average, {a['stop_error_max_mm']} mm at most; {a['stops_with_creep']} times it stood short "
               f"of a stop and moved on to it")
-    print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed; floor: "
-          "the ratio with a perfect speed loop and estimates (only the leader's travel since its data, k sigma and "
-          "the stop window left); where the overhead goes, in cm, measured against truth")
+    print("steady following (B behind a slower A): achieved gap against S_M + v^2/(2 beta_s) at B's speed, on "
+          "average and at its lowest; floor: the ratio with a perfect speed loop and estimates (only the leader's "
+          "travel since its data, k sigma and the stop window left); fresh floor: that with the leader's data of no "
+          "age too; where the overhead goes, in cm, measured against truth")
     print(format_table([_following_row(f) for f in [following] + by_period + by_speed], FOLLOWING_COLUMNS))
     if sweep:
         print("fixed-block sweep:")

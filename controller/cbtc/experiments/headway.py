@@ -168,6 +168,7 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
     steady = (t >= settle_s) & (v_b > 0.05) & np.isin(cseq, list(basis))
     s_min = minimum_gap_m(v_b[steady], fast.beta_s_mps2, params.margin_m)
     achieved = float(np.mean(gap[steady]))
+    lowest = float(np.min(gap[steady] / s_min))
     theoretical = float(np.mean(s_min))
     budget = _overhead_budget(config, fast, basis, steady, t, cseq, eoa_ahead_m, leader_d_m, v_b, gap)
     summary = recorder.summary()
@@ -178,11 +179,14 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
         "achieved_gap_m": round(achieved, 4),
         "theoretical_min_gap_m": round(theoretical, 4),
         "achieved_over_theoretical": round(achieved / theoretical, 3),
+        "lowest_over_theoretical": round(lowest, 3),   # never below 1: the gap is never short of S_min
         "overhead_m": round(achieved - theoretical, 4),
         "overhead_budget_m": budget,
         # what the ratio would be if B rode exactly on its curve with exact estimates: the safety terms alone
         "safety_floor_ratio": round((theoretical + budget["leader_moved_m"] + budget["k_sigma_m"]
                                      + budget["stop_window_m"]) / theoretical, 3),
+        # ... and with the leader's data of no age as well: what no answer time can go below (k sigma, stop window)
+        "fresh_floor_ratio": round((theoretical + budget["k_sigma_m"] + budget["stop_window_m"]) / theoretical, 3),
         "collisions": summary["collisions"],
         "authority_overruns": summary["authority_overruns"],
         "emergency_trips": summary["emergency_trips"],
