@@ -171,6 +171,7 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
     lowest = float(np.min(gap[steady] / s_min))
     theoretical = float(np.mean(s_min))
     budget = _overhead_budget(config, fast, basis, steady, t, cseq, eoa_ahead_m, leader_d_m, v_b, gap)
+    fresh_m = theoretical + budget["k_sigma_m"] + budget["stop_window_m"]   # the safety terms but the data's age
     summary = recorder.summary()
     return {
         "report_ms": report_ms or params.fast_report_ms,
@@ -183,10 +184,9 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
         "overhead_m": round(achieved - theoretical, 4),
         "overhead_budget_m": budget,
         # what the ratio would be if B rode exactly on its curve with exact estimates: the safety terms alone
-        "safety_floor_ratio": round((theoretical + budget["leader_moved_m"] + budget["k_sigma_m"]
-                                     + budget["stop_window_m"]) / theoretical, 3),
+        "safety_floor_ratio": round((fresh_m + budget["leader_moved_m"]) / theoretical, 3),
         # ... and with the leader's data of no age as well: what no answer time can go below (k sigma, stop window)
-        "fresh_floor_ratio": round((theoretical + budget["k_sigma_m"] + budget["stop_window_m"]) / theoretical, 3),
+        "fresh_floor_ratio": round(fresh_m / theoretical, 3),
         "collisions": summary["collisions"],
         "authority_overruns": summary["authority_overruns"],
         "emergency_trips": summary["emergency_trips"],
