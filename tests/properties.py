@@ -33,10 +33,11 @@ json_values = st.recursive(
 hex_text = st.sampled_from(wire.UID_HEX_LENGTHS).flatmap(
     lambda n: st.text("0123456789ABCDEFabcdef", min_size=n, max_size=n))
 board_ms = st.integers(0, WRAP)
+span_mm = st.integers(0, wire.SPAN_MAX_MM)
 tags = st.lists(st.one_of(
-    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms).map(list),
-    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, st.text("0123456789abcdef", min_size=32, max_size=32))
-    .map(list)), max_size=wire.MAX_TAGS)
+    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_mm).map(list),
+    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_mm,
+              st.text("0123456789abcdef", min_size=32, max_size=32)).map(list)), max_size=wire.MAX_TAGS)
 report_fields = st.fixed_dictionaries({
     "boot": st.integers(1, wire.BOOT_MAX), "seq": board_ms, "t_ms": board_ms, "odo_mm": st.integers(-INT31, INT31),
     "v_mmps": st.integers(-20000, 20000), "duty_pct": st.integers(-100, 100), "mode": st.sampled_from(wire.MODES),
@@ -98,13 +99,14 @@ def report_conforms(msg):
     ints = {"boot": (1, wire.BOOT_MAX), "seq": (0, WRAP), "t_ms": (0, WRAP), "odo_mm": (-INT31, INT31),
             "v_mmps": (-20000, 20000), "duty": (-100, 100), "cseq": (-1, WRAP), "csid": (-1, INT31)}
     allowed = set(ints) | {"v", "k", "id", "mode", "ips", "tags", "rng", "flt"}
-    return (set(msg) <= allowed and msg["v"] == 1 and type(msg["v"]) is int and msg["k"] == "rep"
+    return (set(msg) <= allowed and msg["v"] == wire.VERSION and type(msg["v"]) is int and msg["k"] == "rep"
             and msg["id"] == "A" and all(_int_in(msg[k], *b) for k, b in ints.items()) and msg["mode"] in wire.MODES
             and (msg["ips"] is None or _ints(msg["ips"], [(0, WRAP), (-10 ** 6, 10 ** 6), (-10 ** 6, 10 ** 6)]))
             and (msg["rng"] is None or _ints(msg["rng"], [(0, WRAP), (-100000, 10 ** 6)]))
             and type(msg["tags"]) is list and len(msg["tags"]) <= wire.MAX_TAGS
-            and all(type(t) is list and len(t) in (3, 4) and _hex(t[0], (8, 14, 20))
-                    and _ints(t[1:3], [(-INT31, INT31), (0, WRAP)]) and (len(t) == 3 or _hex(t[3], (32,)))
+            and all(type(t) is list and len(t) in (4, 5) and _hex(t[0], (8, 14, 20))
+                    and _ints(t[1:4], [(-INT31, INT31), (0, WRAP), (0, wire.SPAN_MAX_MM)])
+                    and (len(t) == 4 or _hex(t[4], (32,)))
                     for t in msg["tags"])
             and type(msg["flt"]) is list and all(f in wire.FAULTS for f in msg["flt"]))
 
@@ -113,7 +115,7 @@ def command_conforms(msg):
     ints = {"boot": (1, wire.BOOT_MAX), "seq": (0, WRAP), "sid": (0, INT31), "rseq": (0, WRAP), "v_mmps": (0, 5000),
             "eoa_mm": (-INT31, INT31), "ttl_ms": (1, 10000), "acc": (1, 10000), "dec": (1, 10000),
             "stop_mm": (-INT31, INT31), "rpt_ms": (0, 10000), "odo_mm_per_m": (500, 2000)}
-    return (set(msg) == set(ints) | {"v", "k", "id"} and msg["v"] == 1 and type(msg["v"]) is int
+    return (set(msg) == set(ints) | {"v", "k", "id"} and msg["v"] == wire.VERSION and type(msg["v"]) is int
             and msg["k"] == "cmd" and msg["id"] == "A" and all(_int_in(msg[k], *b) for k, b in ints.items()))
 
 
@@ -130,17 +132,18 @@ def decoded_or_reason(decode, key, topic, payload):
 
 def report_round_trip(fields):
     msg = wire.decode_report(KEY, REPORT_TOPIC, encode_report(fields))
-    expected = {"v": 1, "k": "rep", "id": "A", "boot": fields["boot"], "seq": fields["seq"], "t_ms": fields["t_ms"],
-                "odo_mm": fields["odo_mm"], "v_mmps": fields["v_mmps"], "duty": fields["duty_pct"],
-                "mode": fields["mode"], "cseq": fields["cseq"], "csid": fields["csid"], "ips": fields["ips"],
+    expected = {"v": wire.VERSION, "k": "rep", "id": "A", "boot": fields["boot"], "seq": fields["seq"],
+                "t_ms": fields["t_ms"], "odo_mm": fields["odo_mm"], "v_mmps": fields["v_mmps"],
+                "duty": fields["duty_pct"], "mode": fields["mode"], "cseq": fields["cseq"], "csid": fields["csid"],
+                "ips": fields["ips"],
                 "tags": fields["tags"], "flt": fields["faults"], "rng": fields["rng"]}
     assert msg == expected
 
 
 def command_round_trip(fields):
     msg = wire.decode_command(KEY, CMD_TOPIC, encode_command(fields))
-    assert msg == {"v": 1, "k": "cmd", "id": "A", "boot": fields["boot"], "seq": fields["seq"], "sid": fields["sid"],
-                   "rseq": fields["rseq"], "v_mmps": fields["v_mmps"], "eoa_mm": fields["eoa_mm"],
+    assert msg == {"v": wire.VERSION, "k": "cmd", "id": "A", "boot": fields["boot"], "seq": fields["seq"],
+                   "sid": fields["sid"], "rseq": fields["rseq"], "v_mmps": fields["v_mmps"], "eoa_mm": fields["eoa_mm"],
                    "ttl_ms": fields["ttl_ms"], "acc": fields["acc_mmps2"], "dec": fields["dec_mmps2"],
                    "stop_mm": fields["stop_mm"], "rpt_ms": fields["rpt_ms"], "odo_mm_per_m": fields["odo_mm_per_m"]}
 

@@ -55,11 +55,11 @@ def test_the_reader_trusts_a_telegram_checks_it_against_the_layout_and_falls_bac
 def test_reports_carry_balise_data_and_malformed_data_is_refused():
     data = balise.image(1, 0.15).hex()
     payload = wire.encode_report(KEY, "A", 1, 1, 1000, 150, 400, 50, "run", -1, -1, None,
-                                 [["04A100A1", 150, 990, data]], [], None)
+                                 [["04A100A1", 150, 990, 8, data]], [], None)
     report = wire.decode_report(KEY, "cbtc/train/A/report", payload)
-    assert report["tags"] == [["04A100A1", 150, 990, data]]
+    assert report["tags"] == [["04A100A1", 150, 990, 8, data]]
     payload = wire.encode_report(KEY, "A", 1, 2, 1000, 150, 400, 50, "run", -1, -1, None,
-                                 [["04A100A1", 150, 990, "abc"]], [], None)
+                                 [["04A100A1", 150, 990, 8, "abc"]], [], None)
     with pytest.raises(wire.WireError, match="32 hex digits"):
         wire.decode_report(KEY, "cbtc/train/A/report", payload)
 

@@ -37,9 +37,9 @@ def test_align_ips_recovers_the_layout_frame():
 
 def test_survey_tags_from_odometer_reads_on_a_loop():
     reports = [{"odo_mm": 500, "tags": []},
-               {"odo_mm": 900, "tags": [["04A1", 800, 10]]},
-               {"odo_mm": 4000, "tags": [["04B2", 3900, 20]]},
-               {"odo_mm": 5500, "tags": [["04A1", 5404, 30]]}]   # second lap: 5404 - 500 = 4904 mm
+               {"odo_mm": 900, "tags": [["04A1", 800, 10, 0]]},
+               {"odo_mm": 4000, "tags": [["04B2", 3900, 20, 0]]},
+               {"odo_mm": 5500, "tags": [["04A1", 5404, 30, 0]]}]   # second lap: 5404 - 500 = 4904 mm
     survey = survey_tags(reports, start_s_m=1.0, loop_m=4.6)
     # 04A1: 1.0 + 0.3 = 1.3 and 1.0 + 4.904 - 4.6 = 1.304 -> mean 1.302; 04B2: 1.0 + 3.4 = 4.4
     assert [(uid, round(s, 6), n) for uid, s, n in survey] == [("04A1", 1.302, 2), ("04B2", 4.4, 1)]
@@ -49,7 +49,7 @@ def test_survey_tags_from_odometer_reads_on_a_loop():
 def test_calibrate_command_on_recorded_files(tmp_path, capsys):
     run = tmp_path / "run.jsonl"
     run.write_text("\n".join(json.dumps(r) for r in (
-        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5]]}, {"odo_mm": 2100, "tags": []})))
+        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5, 0]]}, {"odo_mm": 2100, "tags": []})))
     assert cli_main(["calibrate", "encoder", "--reports", str(run), "--distance-m", "2.0",
                      "--counts-per-m", "1000"]) == 0
     assert "counts_per_m = 1050\n" in capsys.readouterr().out      # 2.1 m counted for 2.0 m travelled
@@ -65,7 +65,7 @@ def test_calibrate_command_on_recorded_files(tmp_path, capsys):
     run4 = tmp_path / "run4.jsonl"
     telegram = "0123456789abcdef" * 2
     run4.write_text("\n".join(json.dumps(r) for r in (
-        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5, telegram]]})))
+        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "tags": [["DEADBEEF", 1500, 5, 0, telegram]]})))
     assert cli_main(["calibrate", "tags", "--reports", str(run4), "--start-s-m", "0.25", "--rfid-range-m", "0"]) == 0
     assert '{uid: "DEADBEEF", s_m: 1.750}' in capsys.readouterr().out
     assert cli_main(["calibrate", "tags", "--reports", str(run4), "--start-s-m", "0.25", "--rfid-range-m", "0",

@@ -540,3 +540,43 @@ def test_an_end_of_authority_further_ahead_than_any_line_is_refused_and_the_one_
     assert bench.unit.eoa_mm == 5000 and "max_authority_mm" in bench.unit.last_reject and bench.unit.rejected == 1
     bench.command(eoa_mm=odo_mm + limit_mm)
     assert bench.unit.eoa_mm == odo_mm + limit_mm
+
+
+class ScriptedRfid(FakeRfid):
+    """A reader whose bus fails at the passes the test names: those passes did not poll it."""
+
+    def __init__(self):
+        super().__init__()
+        self.failing = False
+
+    def poll(self, now_ms):
+        if self.failing:
+            raise OSError(5, "EIO")
+        return super().poll(now_ms)
+
+
+def test_a_tag_read_carries_the_odometers_run_since_the_readers_previous_poll():
+    """The reader entered the tag's field somewhere in that run: the controller takes the read's lateness from it,
+    whatever the loop's pace; passes whose poll failed are in it too."""
+    rfid = ScriptedRfid()
+    bench = Bench(rfid=rfid)
+    for _ in range(5):
+        bench.step(v_mmps=400)                       # 8 mm a 20 ms pass
+    rfid.uid = "04A1B2C3"
+    bench.step(v_mmps=400)
+    for _ in range(2):
+        bench.step(v_mmps=400)
+    first = [tag for _topic, payload in bench.sent for tag in wire.decode_report(KEY, CMD.replace("cmd", "report"),
+                                                                                  payload)["tags"]]
+    assert first == [["04A1B2C3", 48, 120, 8]]
+    rfid.failing = True
+    for _ in range(3):                               # three passes the reader did not answer
+        bench.step(v_mmps=400)
+    rfid.failing = False
+    rfid.uid = "04A1B2C4"
+    bench.step(v_mmps=400)
+    for _ in range(3):
+        bench.step(v_mmps=400)
+    tags = [tag for _topic, payload in bench.sent for tag in wire.decode_report(KEY, CMD.replace("cmd", "report"),
+                                                                                 payload)["tags"]]
+    assert tags[-1] == ["04A1B2C4", 96, 240, 32]     # the run since the last poll that answered: four passes

@@ -53,7 +53,7 @@ def test_modes_faults_topics_and_limits_match():
                   wire.topic_zone_status("<zone>")):
         assert f"`{topic}`" in doc
     assert f"Payloads over {wire.MAX_PAYLOAD} bytes are refused" in doc
-    assert wire.decode_report.__module__.endswith("wire_zc") and wire.VERSION == 1 and "(version 1)" in doc
+    assert wire.decode_report.__module__.endswith("wire_zc") and wire.VERSION == 2 and "(version 2)" in doc
 
 
 def _number(text):

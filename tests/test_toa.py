@@ -40,7 +40,7 @@ def test_measurement_model_on_a_layout():
 def test_ukf_range_update_pulls_the_estimate_toward_truth():
     from cbtc.estimation.track_ukf import NoiseModel, TrackUkf
     layout = load_layout("straight_test")
-    noise = NoiseModel(0.02, 1e-6, 1e-6, 1e-6, 0.05 ** 2, 1e-6, 0.015, 0.02, 0.999)
+    noise = NoiseModel(0.02, 1e-6, 1e-6, 1e-6, 0.05 ** 2, 1e-6, 0.015, 0.999)
     f = TrackUkf(layout, noise, [1.0, 0.0, 0.0], np.diag([0.1 ** 2, 0.01, 1e-6]), 0.0)
     x, y = (float(v) for v in layout.xy(1.05))   # truth s = 1.05; radio 0.5 m further along, 0.1 m beside
     xr, yr, heading = (float(v) for v in layout.pose(1.55))

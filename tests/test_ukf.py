@@ -22,6 +22,7 @@ from cbtc.estimation.track_ukf import (
     along_track_residual,
     initial_covariance,
     process_noise,
+    tag_read_model,
 )
 from cbtc.estimation.ukf_estimator import UkfEstimator
 from cbtc.firmware import obu
@@ -65,8 +66,8 @@ def synthetic_run(layout, profile, seed, duration_s, s0_m=0.0, target=cruise_and
         if polled is not None:
             fix = [polled[0], polled[1], polled[2]]
         uid = rfid.poll(t_ms)
-        if uid is not None:
-            tags.append([uid, odo_mm, t_ms])
+        if uid is not None:   # the board's entry: the odometer's run since the previous poll with it
+            tags.append([uid, odo_mm, t_ms, odo_mm - ring[-2][1] if len(ring) > 1 else 0])
         truth.append((t_s, s0_m + travelled_m, v_mps))
         if k % 5 == 0:
             old_ms, old_mm = ring[max(0, len(ring) - 6)]
@@ -107,7 +108,7 @@ def straight():
 
 def test_ukf_equals_linear_kalman_filter_on_a_straight(straight):
     noise = NoiseModel(accel_psd_m2ps3=0.3, slip_var_m2_per_m=2e-6, scale_var_per_m=0.0, odo_var_m2=1e-7,
-                       ips_var_m2=0.05 ** 2, tag_var_m2=4e-6, rfid_range_m=0.015, rfid_poll_s=0.02, gate_prob=0.999999)
+                       ips_var_m2=0.05 ** 2, tag_var_m2=4e-6, rfid_range_m=0.015, gate_prob=0.999999)
     x0 = np.array([1.0, 0.3, 0.0])
     P0 = initial_covariance(3, 0.05, 0.1, 0.002, 0.0)
     ukf = TrackUkf(straight, noise, x0, P0, t_s=0.0)
@@ -207,7 +208,7 @@ def test_unknown_tag_is_counted_and_ignored(loop):
     profile = TrainProfile()
     reports, _truth = synthetic_run(loop, profile, seed=6, duration_s=10.0)
     odd = [dict(r) for r in reports]
-    odd[60] = dict(odd[60], tags=odd[60]["tags"] + [["deadbeef", odd[60]["odo_mm"], odd[60]["t_ms"]]])
+    odd[60] = dict(odd[60], tags=odd[60]["tags"] + [["deadbeef", odd[60]["odo_mm"], odd[60]["t_ms"], 8]])
     a, b = UkfEstimator(loop, profile), UkfEstimator(loop, profile)
     feed(a, reports)
     feed(b, odd)
@@ -288,7 +289,7 @@ def test_train_moved_by_hand_is_covered_until_a_balise_places_it(loop):
     last = moved[-1]
     read_s = truth[round(controller_s(last["t_ms"]) * 1000) // LOOP_MS, 1] + 1.2 + profile.rfid_range_m
     data = balise.image(77, float(loop.wrap(read_s))).hex()
-    feed(est, [dict(last, tags=[["0a0b0c0d", last["odo_mm"], last["t_ms"], data]])])
+    feed(est, [dict(last, tags=[["0a0b0c0d", last["odo_mm"], last["t_ms"], 8, data]])])
     t_s = controller_s(last["t_ms"])
     assert est.counters()["relocations"] == 1 and not est.counters()["disagreeing"]
     placed = est.estimate(t_s)
@@ -444,13 +445,13 @@ def test_started_afresh_and_placed_by_the_ips_alone_the_estimate_covers_where_th
     last = standing[-1]
     data = balise.image(77, float(loop.wrap(1.0 + profile.rfid_range_m))).hex()
     feed(est, [dict(last, seq=last["seq"] + 1, t_ms=last["t_ms"] + 125,
-                    tags=[["0a0b0c0d", 0, last["t_ms"] + 100, data]])])
+                    tags=[["0a0b0c0d", 0, last["t_ms"] + 100, 0, data]])])
     confirmed = est.estimate(controller_s(last["t_ms"] + 125))
     assert confirmed.ahead_m == confirmed.behind_m == 0.0 and abs(along_error_m(loop, confirmed.s_m, 1.0)) < 0.05
     # placed by a balise, no span is kept: the balise is the arbiter
     tagged = UkfEstimator(loop, profile)
     tagged.keep_doubt(1.75, 1.85)
-    feed(tagged, [dict(standing[0], ips=None, tags=[["0a0b0c0d", 0, standing[0]["t_ms"], data]])])
+    feed(tagged, [dict(standing[0], ips=None, tags=[["0a0b0c0d", 0, standing[0]["t_ms"], 0, data]])])
     first = tagged.estimate(controller_s(standing[0]["t_ms"]))
     assert tagged.localized and first.ahead_m == first.behind_m == 0.0
 
@@ -465,7 +466,7 @@ def test_a_train_booted_standing_over_a_tag_is_covered_wherever_in_the_field_it_
     s_m = tag.s_m + head_past_tag_m
     t_ms = BOARD_OFFSET_MS
     report = {"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 0, "duty": 0, "mode": "idle", "cseq": -1, "ips": None,
-              "tags": [[tag.uid, 0, t_ms]], "flt": []}
+              "tags": [[tag.uid, 0, t_ms, 0]], "flt": []}
     est = UkfEstimator(loop, profile)
     feed(est, [report])
     placed = est.estimate(controller_s(t_ms))
@@ -480,7 +481,7 @@ def test_a_roll_widens_the_estimate_by_all_it_rolled_not_in_quadrature(loop):
     tag = loop.tags[2]
     t_ms = BOARD_OFFSET_MS
     reports = [{"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 0, "duty": 0, "mode": "idle", "cseq": -1, "ips": None,
-                "tags": [[tag.uid, 0, t_ms]], "flt": []}]
+                "tags": [[tag.uid, 0, t_ms, 0]], "flt": []}]
     for k in range(1, 101):
         reports.append(dict(reports[0], seq=k, t_ms=t_ms + 50 * k, odo_mm=2 * k, tags=[], flt=["roll"]))
     est = UkfEstimator(loop, profile)
@@ -498,14 +499,14 @@ def test_a_balise_read_the_filter_gates_is_covered_as_a_wheel_that_slipped(loop)
     spacing_m = loop.ahead_m(first.s_m, second.s_m)
     t_ms = BOARD_OFFSET_MS
     base = {"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 500, "duty": 70, "mode": "run", "cseq": -1, "ips": None,
-            "tags": [[first.uid, 0, t_ms]], "flt": []}
+            "tags": [[first.uid, 0, t_ms, 0]], "flt": []}
     reports = [base]
     odo_mm, k, target_mm = 0, 0, int((spacing_m - 0.15) * 1000)
     while odo_mm < target_mm:
         k += 1
         odo_mm = min(25 * k, target_mm)
         reports.append(dict(base, seq=k, t_ms=t_ms + 50 * k, odo_mm=odo_mm, tags=[]))
-    reports[-1] = dict(reports[-1], tags=[[second.uid, odo_mm, reports[-1]["t_ms"]]])
+    reports[-1] = dict(reports[-1], tags=[[second.uid, odo_mm, reports[-1]["t_ms"], 8]])
     est = UkfEstimator(loop, profile)
     feed(est, reports)
     now = est.estimate(controller_s(reports[-1]["t_ms"]))
@@ -513,7 +514,7 @@ def test_a_balise_read_the_filter_gates_is_covered_as_a_wheel_that_slipped(loop)
     assert est.odometer_per_m_low(3.0) == 0.5
     far = loop.tags[7]
     est = UkfEstimator(loop, profile)
-    feed(est, reports[:-1] + [dict(reports[-1], tags=[[far.uid, odo_mm, reports[-1]["t_ms"]]])])
+    feed(est, reports[:-1] + [dict(reports[-1], tags=[[far.uid, odo_mm, reports[-1]["t_ms"], 8]])])
     now = est.estimate(controller_s(reports[-1]["t_ms"]))
     assert now.ahead_m == now.behind_m == 0.0 and est.odometer_per_m_low(3.0) > 0.9
 
@@ -523,7 +524,7 @@ def _cruise_reports(tag, counts_per_true_m):
     odometer m per true m over report k's travel."""
     t_ms = BOARD_OFFSET_MS
     base = {"seq": 0, "t_ms": t_ms, "odo_mm": 0, "v_mmps": 500, "duty": 70, "mode": "run", "cseq": -1, "ips": None,
-            "tags": [[tag.uid, 0, t_ms]], "flt": []}
+            "tags": [[tag.uid, 0, t_ms, 0]], "flt": []}
     reports, odo_m = [base], 0.0
     for k in range(1, 121):
         scale = counts_per_true_m(k)
@@ -689,7 +690,7 @@ def test_filter_steps_equal_filterpy_reference(layout_name):
 
     layout = load_layout(layout_name)
     rng = np.random.default_rng(7)
-    noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.05, 0.999)
+    noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.999)
     worst, gated = 0.0, 0
     for n in (3, 4):
         for _ in range(8):
@@ -712,8 +713,9 @@ def test_filter_steps_equal_filterpy_reference(layout_name):
                 gated += not used
                 if rng.random() < 0.3:
                     tag_m = float(layout.wrap(ref.x[0] + rng.normal(0.02, 0.01)))
-                    in_field = bool(rng.random() < 0.3)
-                    assert ours.update_tag(tag_m, ref.x[2], in_field) == ref.update_tag(tag_m, ref.x[2], in_field)
+                    in_field, span_m = bool(rng.random() < 0.3), float(rng.uniform(0.0, 0.012))
+                    assert ours.update_tag(tag_m, ref.x[2], in_field, span_m) == ref.update_tag(tag_m, ref.x[2],
+                                                                                               in_field, span_m)
                 if rng.random() < 0.3:
                     r_m = float(np.hypot(*(layout.xy(ref.x[0]) - (0.3, -0.2)))) + rng.normal(0, 0.02)
                     assert ours.update_range(0.3, -0.2, r_m, 0.03) == ref.update_range(0.3, -0.2, r_m, 0.03)
@@ -751,3 +753,30 @@ def test_every_filter_setting_is_in_the_fusion_doc_with_its_default():
     for f in dataclasses.fields(UkfParams):
         assert f.name in rows, f"docs/fusion.md does not list {f.name}"
         assert math.isclose(float(rows[f.name]), f.default), (f.name, rows[f.name], f.default)
+
+
+def test_a_tag_read_lands_anywhere_in_the_run_the_board_says_its_reader_made_since_its_previous_poll():
+    """The head came `rfid_range_m` short of the tag somewhere in the run since the reader's previous poll (the
+    read's span): uniformly there, whatever the board's loop pace; a read in the field at boot: either side."""
+    noise = NoiseModel(accel_psd_m2ps3=0.02, slip_var_m2_per_m=2e-6, scale_var_per_m=0.0, odo_var_m2=1e-7,
+                       ips_var_m2=0.05 ** 2, tag_var_m2=4e-6, rfid_range_m=0.015, gate_prob=0.999)
+    assert tag_read_model(noise, 0.0) == (0.015, 4e-6)
+    offset_m, var_m2 = tag_read_model(noise, 0.02)     # a 50 ms poll at 0.4 m/s: 20 mm of run
+    assert offset_m == pytest.approx(0.005) and var_m2 == pytest.approx(4e-6 + 0.02 ** 2 / 12.0)
+    assert tag_read_model(noise, 0.02, in_field=True) == (0.0, pytest.approx(4e-6 + 0.015 ** 2 / 3.0))
+
+
+def test_the_reads_spans_of_a_virtual_train_cover_where_its_head_came_into_the_readers_field(loop):
+    """Truth against the board's entries: at every read the head lies between the field's edge and the span's run
+    past it (the reader polled at every 20 ms pass)."""
+    profile = TrainProfile().with_changes(rfid_miss=0.0)
+    reports, truth = synthetic_run(loop, profile, 3, 30.0)
+    tags = {tag.uid: tag.s_m for tag in loop.tags}
+    checked = 0
+    for report in reports:
+        for uid, _odo_mm, t_ms, span_mm in report["tags"]:
+            head_m = truth[round(controller_s(t_ms) * 1000) // LOOP_MS, 1]
+            past_edge_m = loop.ahead_m(tags[uid] - profile.rfid_range_m, head_m)
+            assert -1e-6 <= past_edge_m <= span_mm / 1000.0 * 1.05 + 0.001, (uid, past_edge_m, span_mm)
+            checked += 1
+    assert checked >= 10

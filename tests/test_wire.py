@@ -16,7 +16,7 @@ BOOT = 77
 
 def report(**changes):
     fields = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3, csid=99,
-                  ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990]], faults=["ips_crc"])
+                  ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990, 8]], faults=["ips_crc"])
     fields.update(changes)
     return wire.encode_report(KEY, "A", BOOT, **fields)
 
@@ -63,7 +63,7 @@ def test_the_controllers_json_gives_the_standard_librarys_results():
     text, the same errors, whatever the input."""
     assert wire.json.loads is fast_wire.loads and wire.dumps_compact is fast_wire.dumps_compact
     compact = json.JSONEncoder(separators=(",", ":")).encode
-    messages = [{"v": 1, "k": "rep", "id": "A", "ips": [1, -2, 3], "tags": [["04A1", 5, 6]], "flt": [], "x": None},
+    messages = [{"v": 1, "k": "rep", "id": "A", "ips": [1, -2, 3], "tags": [["04A1", 5, 6, 7]], "flt": [], "x": None},
                 {"f": 1.5, "nan": float("nan"), "big": 2 ** 70, "t": True, "s": "caf\u00e9 \"q\"\n"}, [], "x", 3]
     for msg in messages:
         assert fast_wire.dumps_compact(msg) == compact(msg)
@@ -90,11 +90,11 @@ def test_the_controllers_report_encoder_gives_the_boards_bytes():
     fast, board = wire.encode_report, wire.encode_report.board_encode
     assert fast is not board and board.__module__ == wire.__name__
     base = dict(seq=7, t_ms=1000, odo_mm=1234, v_mmps=400, duty_pct=55, mode="run", cseq=3, csid=99,
-                ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990]], faults=["ips_crc"])
+                ips=[950, 100, -200], tags=[["04A1B2C3D4E5F6", 1200, 990, 8]], faults=["ips_crc"])
     cases = [{}, {"ips": None, "tags": [], "faults": []}, {"rng": [1000, 250]}, {"faults": ["roll", "undriven"]},
              {"faults": ["made_up"]}, {"faults": ("roll",)}, {"ips": (1, 2, 3)}, {"ips": [1, True, 3]},
              {"duty_pct": True}, {"v_mmps": 2.5}, {"seq": 2 ** 40}, {"mode": "fly"}, {"odo_mm": -5, "cseq": -1},
-             {"tags": [["04A1", 5, 6, "0123"]]}, {"rng": None}, {"ips": [1, 2.5, 3]}, {"faults": ["ips_crc", 3]}]
+             {"tags": [["04A1", 5, 6, 7, "0123"]]}, {"rng": None}, {"ips": [1, 2.5, 3]}, {"faults": ["ips_crc", 3]}]
     for train_id in ("A", "T-12_x", "caf\u00e9", 'q"uote'):
         for case in cases:
             fields = dict(base, **case)
@@ -189,7 +189,7 @@ def reseal(body: dict, topic="cbtc/train/A/report"):
 
 
 @pytest.mark.parametrize("change, reason", [
-    ({"v": 2}, "version 2"),
+    ({"v": 1}, "version 1"),                          # a board of the version before: reflash it
     ({"k": "cmd"}, "kind"),
     ({"id": "B"}, "names train 'B'"),
     ({"seq": -1}, "'seq'"),
@@ -200,18 +200,22 @@ def reseal(body: dict, topic="cbtc/train/A/report"):
     ({"tags": [["x", 1]]}, "'tags'"),
     ({"flt": ["meltdown"]}, "'flt'"),
     ({"v": True}, "version True"),                      # a bool is not a number
-    ({"v": 1.0}, "version 1.0"),
+    ({"v": 2.0}, "version 2.0"),
     ({"id": None}, "names train None"),
     ({"seq": True}, "must be an integer"),
     ({"t_ms": 2 ** 40}, "'t_ms'"),
     ({"odo_mm": 1.5}, "'odo_mm'"),
-    ({"tags": [["04A1B2", 1200, 990]]}, "8, 14 or 20 hex digits"),          # a uid no reader gives
-    ({"tags": [["04A1B2ZZ", 1200, 990]]}, "8, 14 or 20 hex digits"),
-    ({"tags": [[1234, 1200, 990]]}, "8, 14 or 20 hex digits"),
-    ({"tags": [["04A1B2C3", True, 990]]}, "('tags', 'odo_mm')"),
-    ({"tags": [["04A1B2C3", 10 ** 400, 990]]}, "('tags', 'odo_mm')"),
-    ({"tags": [["04A1B2C3", 1200, -1]]}, "('tags', 't_ms')"),
-    ({"tags": [["04A1B2C3", 1200, 990, "00" * 15 + "GG"]]}, "32 hex digits"),
+    ({"tags": [["04A1B2", 1200, 990, 8]]}, "8, 14 or 20 hex digits"),          # a uid no reader gives
+    ({"tags": [["04A1B2ZZ", 1200, 990, 8]]}, "8, 14 or 20 hex digits"),
+    ({"tags": [[1234, 1200, 990, 8]]}, "8, 14 or 20 hex digits"),
+    ({"tags": [["04A1B2C3", True, 990, 8]]}, "('tags', 'odo_mm')"),
+    ({"tags": [["04A1B2C3", 10 ** 400, 990, 8]]}, "('tags', 'odo_mm')"),
+    ({"tags": [["04A1B2C3", 1200, -1, 8]]}, "('tags', 't_ms')"),
+    ({"tags": [["04A1B2C3", 1200, 990, 8, "00" * 15 + "GG"]]}, "32 hex digits"),
+    ({"tags": [["04A1B2C3", 1200, 990, -1]]}, "('tags', 'span_mm')"),              # a run is never negative
+    ({"tags": [["04A1B2C3", 1200, 990, 70000]]}, "('tags', 'span_mm')"),
+    ({"tags": [["04A1B2C3", 1200, 990]]}, "span_mm]"),                            # no span: version 1's entry
+    ({"tags": [["04A1B2C3", 1200, 990, "00" * 16]]}, "('tags', 'span_mm')"),       # its telegram where the span goes
     ({"ips": [950, True, -200]}, "('ips', 'x_mm')"),
     ({"rng": [950, 1.5]}, "('rng', 'gap_mm')"),
     ({"extra": 1}, "unknown field 'extra'"),

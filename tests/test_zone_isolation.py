@@ -37,7 +37,8 @@ def extreme_report(rng, zc, key):
         csid=rng.choice([zc.session_id, -1, extreme(rng, -1, INT31)]),
         ips=rng.choice([None, [extreme(rng, 0, W, t) & W, extreme(rng, -10 ** 6, 10 ** 6),
                                extreme(rng, -10 ** 6, 10 ** 6)]]),
-        tags=rng.choice([[], [["04A1B2C3", extreme(rng, -INT31, INT31, odo), extreme(rng, 0, W, t) & W]]]),
+        tags=rng.choice([[], [["04A1B2C3", extreme(rng, -INT31, INT31, odo), extreme(rng, 0, W, t) & W,
+                               extreme(rng, 0, wire.SPAN_MAX_MM)]]]),
         faults=rng.choice([[], [], ["enc_fail"]]),
         rng=rng.choice([None, [extreme(rng, 0, W, t) & W, extreme(rng, -100000, 10 ** 6)]]))
     return wire.encode_report(key, "A", **fields)
@@ -89,9 +90,9 @@ def test_a_board_clock_and_sequence_move_no_faster_than_time(change, refused):
 
 
 def test_stamps_outside_their_report_are_dropped_and_odometer_jumps_measured():
-    report = {"t_ms": 10000, "odo_mm": 1000, "ips": [9990, 1, 2], "tags": [["04A1B2C3", 990, 9980]], "rng": None}
+    report = {"t_ms": 10000, "odo_mm": 1000, "ips": [9990, 1, 2], "tags": [["04A1B2C3", 990, 9980, 8]], "rng": None}
     assert plausibility.plausible_parts(report, 980) == (report, 0)
-    bad = dict(report, ips=[10010, 1, 2], tags=[["04A1B2C3", 5000, 9980], ["04A1B2C4", 990, 2000]], rng=[3, 100])
+    bad = dict(report, ips=[10010, 1, 2], tags=[["04A1B2C3", 5000, 9980, 8], ["04A1B2C4", 990, 2000, 8]], rng=[3, 100])
     kept, dropped = plausibility.plausible_parts(bad, 980)
     assert dropped == 4 and kept["ips"] is None and kept["tags"] == [] and kept["rng"] is None
     assert plausibility.odometer_jump_mm({"t_ms": 10050, "odo_mm": 1060}, {"t_ms": 10000, "odo_mm": 1000}, 0.75) == 0

@@ -66,7 +66,6 @@ _SAK_MORE = const(0x04)       # SAK: the UID is not complete
 _READ = const(0x30)           # Type 2 READ: 4 pages (16 bytes) from the page given
 _BALISE_PAGE = const(4)       # first user page of NTAG/Ultralight: the balise telegram
 
-_POLL_MS = const(50)          # shortest time between two reads (ms)
 _ABSENT_MS = const(300)       # a tag must be gone this long before it is reported again (ms)
 _WAIT_LOOPS = const(400)      # register polls before a transceive is given up
 
@@ -86,7 +85,6 @@ class Mfrc522:
     version = 0               # VersionReg as read at start
     present = False           # a known chip answered and was set up
     data = None               # the last tag's pages 4-7 as 32 hex digits (a balise), or None
-    _last_poll_ms = None
     _last_uid = None
     _last_seen_ms = 0
 
@@ -109,7 +107,8 @@ class Mfrc522:
             self._write(_T_MODE, 0x8D)        # timer starts after sending; prescaler 0xD3E: 2 kHz ticks
             self._write(_T_PRESCALER, 0x3E)
             self._write(_T_RELOAD_H, 0)
-            self._write(_T_RELOAD_L, 10)      # 10 ticks: 5 ms answer timeout
+            self._write(_T_RELOAD_L, 2)       # 2 ticks: 1 ms answer timeout (the timer stops at an answer's 5th
+            #                                   bit; a tag answers within 0.1 ms): a poll that finds no tag is short
             self._write(_TX_ASK, 0x40)
             self._write(_MODE, 0x3D)          # CRC preset 0x6363 (ISO 14443A)
             self._write(_TX_CONTROL, self._read(_TX_CONTROL) | _ANTENNA_ON)
@@ -213,15 +212,12 @@ class Mfrc522:
         return uid
 
     def poll(self, now_ms):
-        """Rate-limited read at board time `now_ms` (monotonic ms): a tag's UID once per passage, else None.
-
-        Reads at most every 50 ms; the same UID is reported again only after it has been absent for 300 ms.
+        """A read at board time `now_ms` (monotonic ms): a tag's UID once per passage, else None. Every call reads
+        (the board's loop sets the pace, and reports how far it ran between two reads); the same UID is reported
+        again only after it has been absent for 300 ms.
         """
         if not self.present:
             return None
-        if self._last_poll_ms is not None and wire.wrap_diff(now_ms, self._last_poll_ms) < _POLL_MS:
-            return None
-        self._last_poll_ms = now_ms
         uid = self.read_uid()
         if uid is None:
             return None

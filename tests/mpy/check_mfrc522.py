@@ -77,7 +77,6 @@ def check_mfrc522_once_per_passage():
         if uid is not None:
             seen.append((t_ms, uid))
     assert seen == [(0, "04A10000"), (800, "04A10000")], seen
-    assert chip.transceives <= 2 * 20 + 20               # at most one read every 50 ms (REQA + anticollision)
 
 
 def check_mfrc522_other_tag_reported_at_once():
@@ -85,8 +84,8 @@ def check_mfrc522_other_tag_reported_at_once():
     chip.uid = bytes([1, 2, 3, 4])
     assert reader.poll(0) == "01020304"
     chip.uid = bytes([5, 6, 7, 8])
-    assert reader.poll(20) is None                       # rate limit: 50 ms
-    assert reader.poll(50) == "05060708"
+    assert reader.poll(20) == "05060708"                 # every poll reads: the loop sets the pace
+    assert reader.poll(40) is None                       # the same tag, still there: one report a passage
 
 
 def check_mfrc522_crc_a():

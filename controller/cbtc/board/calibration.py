@@ -47,17 +47,15 @@ def align_ips(ips_xy_m, track_xy_m):
     return math.degrees(theta), float(origin[0]), float(origin[1]), rms_m
 
 
-def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None, odo_per_m=1.0, read_ahead_m=0.0,
-                poll_s=0.0):
+def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None, odo_per_m=1.0, read_ahead_m=0.0):
     """Each tag's position along the track from a run's reports: where the head was at the read, from the odometer
     (`odo_per_m`: odometer metres per true metre, from the encoder calibration; 1: it reads true), plus how far short
     of a tag the head is when the reader first reads it: `read_ahead_m` (the reader's range, ahead of the head) less
-    half the way the train runs in one poll of the reader (`poll_s`, at its speed in the report carrying the read).
+    half the odometer's run since the reader's previous poll (the read's `span_mm`: the field's edge lies in it).
 
-    `reports`: decoded report dicts in order (fields `odo_mm`, `tags`, and `v_mmps` for the poll's share);
-    start_odo_mm defaults to the first report's odometer, taken where the train's head stood at start_s_m. Several
-    reads of one tag are averaged (on a loop, within one lap of the first read). Returns [(uid, s_m, reads)] sorted
-    by s_m.
+    `reports`: decoded report dicts in order (fields `odo_mm` and `tags`); start_odo_mm defaults to the first
+    report's odometer, taken where the train's head stood at start_s_m. Several reads of one tag are averaged (on a
+    loop, within one lap of the first read). Returns [(uid, s_m, reads)] sorted by s_m.
     """
     if not odo_per_m > 0.0:
         raise ConfigError(f"survey_tags: odometer metres per metre must be > 0, got {odo_per_m}")
@@ -65,10 +63,9 @@ def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None, odo_per_
     for report in reports:
         if start_odo_mm is None:
             start_odo_mm = report["odo_mm"]
-        late_m = 0.5 * abs(report.get("v_mmps", 0)) / 1000.0 / odo_per_m * poll_s
-        for entry in report.get("tags", []):   # [uid, odo_mm, t_ms] and, from a tag with a telegram, its telegram
-            uid, odo_mm = entry[0], entry[1]
-            s_m = start_s_m + (odo_mm - start_odo_mm) / 1000.0 / odo_per_m + read_ahead_m - late_m
+        for entry in report.get("tags", []):   # [uid, odo_mm, t_ms, span_mm] and a balise's telegram
+            uid, odo_mm, span_mm = entry[0], entry[1], entry[3]
+            s_m = start_s_m + (odo_mm - 0.5 * span_mm - start_odo_mm) / 1000.0 / odo_per_m + read_ahead_m
             if loop_m:
                 s_m %= loop_m
                 first = reads.get(uid, [s_m])[0]

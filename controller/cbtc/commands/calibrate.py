@@ -8,6 +8,7 @@ import json
 
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
+from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 
 
@@ -44,8 +45,6 @@ def register(subparsers):
                       default=TrainProfile.rfid_range_m,
                       help=f"how far ahead of the head the reader reads a tag (m; default "
                            f"{TrainProfile.rfid_range_m}, the MFRC522 with a LEGO tag)")
-    tags.add_argument("--poll-ms", type=arg_types.number(minimum=0.0, example="20"), default=20.0,
-                      help="the board's loop period, once per which it polls the reader (ms; default 20)")
     tags.add_argument("--train", default=None, metavar="ID", help="the train whose reports to use (a recording of "
                                                                   "several trains needs it)")
     tags.set_defaults(func=_tags)
@@ -88,10 +87,11 @@ def _all_reports(path):
         raise ConfigError(f"{path}: expected JSON lines of reports with an 'odo_mm' field")
     for number, report in enumerate(reports, 1):
         tags = report.get("tags", [])
-        if not isinstance(tags, list) or any(not isinstance(t, list) or len(t) < 3 or not isinstance(t[0], str)
-                                             or not isinstance(t[1], (int, float)) for t in tags):
-            raise ConfigError(f"{path} report {number}: 'tags' must be a list of [uid, odo_mm, t_ms, ...] entries "
-                              f"(docs/protocol.md), got {tags!r}")
+        if not isinstance(tags, list) or any(not isinstance(t, list) or len(t) < 4 or not isinstance(t[0], str)
+                                             or not all(isinstance(v, (int, float)) for v in t[1:4]) for t in tags):
+            raise ConfigError(f"{path} report {number}: 'tags' must be a list of [uid, odo_mm, t_ms, span_mm, ...] "
+                              f"entries (docs/protocol.md, version {wire.VERSION}); record the run again with boards "
+                              f"of this version, got {tags!r}")
     return reports
 
 
@@ -138,7 +138,7 @@ def _tags(args):
     if args.distance_m is not None:
         odo_per_m = _travelled_m(args, reports) / args.distance_m
     survey = survey_tags(reports, args.start_s_m, loop_m=args.loop_m, odo_per_m=odo_per_m,
-                         read_ahead_m=args.rfid_range_m, poll_s=args.poll_ms / 1000.0)
+                         read_ahead_m=args.rfid_range_m)
     if not survey:
         raise ConfigError(f"{args.reports}: no tag was read in {len(reports)} reports; record a run that passes "
                           f"over the tags (is the reader wired? `rfid_absent` in the reports' faults says not)")

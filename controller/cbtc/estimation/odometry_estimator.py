@@ -71,7 +71,7 @@ class OdometryEstimator:
         odo_mm = report["odo_mm"]
         v_mps = report["v_mmps"] / 1000.0
         for entry in report["tags"]:
-            tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
+            tag_s_m = self.balises.position_m(entry[0], entry[4] if len(entry) > 4 else None)
             if tag_s_m is None:
                 continue
             self._s_ref_m = tag_s_m

@@ -58,7 +58,6 @@ class UkfParams:
     scale_walk_per_sqrt_m: float = 1e-3  # scale error drift per sqrt(metre) travelled (wear, dirt, load)
     slip_length_m: float = 0.02       # distance over which wheel slip is correlated (a wheel's roll per loop tick)
     tag_sigma_m: float = 0.002        # tag placement and reader-field spread (1-sigma)
-    rfid_poll_s: float = 0.02         # the onboard loop polls the reader once per period
     gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
     relocate_after: int = 8           # gated IPS fixes looked at together: where enough agree, the sensors disagree
     bias_fixes: int = 16              # newest IPS fixes whose innovations' median tells a bias of the wheel (from
@@ -107,7 +106,6 @@ def noise_model(profile, params: UkfParams) -> NoiseModel:
         ips_var_m2=profile.ips_sigma_m ** 2,
         tag_var_m2=params.tag_sigma_m ** 2,
         rfid_range_m=profile.rfid_range_m,
-        rfid_poll_s=params.rfid_poll_s,
         gate_prob=params.gate_prob,
     )
 
@@ -131,7 +129,7 @@ class _Event:
 
     def __init__(self, t_s, kind, data):
         self.t_s = t_s
-        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field);
+        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field, span_m);
         #                       "roll": (step_m, run_m: the roll's steps before, d_m); "range": (radio_x_m, radio_y_m,
         #                       range_m, sigma_m); "step": (the step's share of the newest travel m, scale sigma)
         self.data = data
@@ -363,13 +361,13 @@ class UkfEstimator:
         if step is not None:
             new.append(_Event(t_s, "step", step))
         for entry in report["tags"]:
-            tag_s_m = self.balises.position_m(entry[0], entry[3] if len(entry) > 3 else None)
+            tag_s_m = self.balises.position_m(entry[0], entry[4] if len(entry) > 4 else None)
             if tag_s_m is None:
                 continue
             # read before the train first moved: it may have stood in the reader's field all along
             in_field = self._first_odo_m is None or entry[1] / 1000.0 <= self._first_odo_m
             new.append(_Event(board_clock.board_s(entry[2]), "tag",
-                              (tag_s_m, entry[1] / 1000.0 - self._rolled_m, in_field)))
+                              (tag_s_m, entry[1] / 1000.0 - self._rolled_m, in_field, entry[3] / 1000.0)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
@@ -545,8 +543,8 @@ class UkfEstimator:
             else:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
-                tag_s_m, d_m, in_field = event.data
-                offset_m, _var = tag_read_model(self.noise, float(f.mean[V]), in_field)
+                tag_s_m, d_m, in_field, span_m = event.data
+                offset_m, _var = tag_read_model(self.noise, f.true_m(span_m), in_field)
                 here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
                 story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
                 if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
@@ -633,11 +631,11 @@ class UkfEstimator:
                    if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
         return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
 
-    def _arbitrate(self, f, consensus, tag_s_m, d_m, in_field):
+    def _arbitrate(self, f, consensus, tag_s_m, d_m, in_field, span_m):
         """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
         three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
         _low, _high, anchor_m, sigma_m = consensus
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]), in_field)
+        offset_m, var_m2 = tag_read_model(self.noise, f.true_m(span_m), in_field)
         read_s_m = tag_s_m - offset_m
         tag_sigma_m = sqrt(var_m2)
         ring_m = self.layout.loop_length_m
@@ -675,8 +673,8 @@ class UkfEstimator:
             return None
         d_m, v_mps = odometer
         if event.kind == "tag":
-            tag_s_m, d_m, in_field = event.data
-            offset_m, var_m2 = tag_read_model(self.noise, v_mps, in_field)
+            tag_s_m, d_m, in_field, span_m = event.data   # the scale is not learnt yet: the odometer's run as it is
+            offset_m, var_m2 = tag_read_model(self.noise, span_m, in_field)
             s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
             used = _State(None, tags_used=1)
         else:

@@ -110,7 +110,7 @@ def fusion_speed(n_trains: int = 50, steps: int = 40, seed: int = 0) -> dict:
 
     layout = load_layout("lego_long_oval")
     rng = np.random.default_rng(seed)
-    noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.05, 0.999)
+    noise = NoiseModel(0.01, 1e-4, 1e-6, 1e-6, 4e-4, 1e-4, 0.02, 0.999)
     dt_s = 0.05
     starts = [(np.array([rng.uniform(0.5, layout.length_m - 0.5), 0.4, 0.0, 0.01]),
                np.diag([1e-4, 1e-3, 1e-6, 1e-4])) for _ in range(n_trains)]
