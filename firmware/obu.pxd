@@ -11,7 +11,7 @@ cdef class OnboardUnit:
     cdef public object v_mmps, _ring_t, _ring_n, _ring_i, _last_move_ms, sid
     cdef public object cseq, cmd, cmd_expiry_ms, eoa_mm, _rejected_since_report, mode
     cdef public object v_ref_mmps, _integral, _a_lp, duty_pct, _duty_acc, _last_step_ms
-    cdef public object seq, _report_slot_ms, _sent_seq, _sent_t, _ips_fix, _tags, _rfid_odo_mm
+    cdef public object seq, _report_slot_ms, _sent_seq, _sent_t, _ips_fix, _tags, _rfid_ms
     cdef public object faults, link_ok, _rolled
     # the defaults set in the class body (a smaller heap on the board) stay in __dict__: a C type cannot have both
 

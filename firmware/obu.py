@@ -63,7 +63,7 @@ _ADHESION_MMPS2 = const(3000)  # no train stops faster than this (wheel adhesion
 _ENC_HOLD_MS = const(2000)     # a failed encoder holds the train braked this long after its last sign (ms)
 _SAT_MS = const(300)     # drive at its ceiling this long with the train slower than the reference: encoder failed
 _SLOW_MMPS = const(50)   # what "slower" means there (mm/s)
-_SPAN_MAX_MM = const(65535)   # the longest run a tag read's span may state (wire_zc.SPAN_MAX_MM)
+_SPAN_MAX_MS = const(65535)   # the longest time a tag read's span may state (wire_zc.SPAN_MAX_MS)
 
 
 class OnboardUnit:
@@ -154,7 +154,7 @@ class OnboardUnit:
         self._sent_t = [0] * _HISTORY
         self._ips_fix = None
         self._tags = []
-        self._rfid_odo_mm = None      # the odometer at the reader's previous poll (None: not polled yet)
+        self._rfid_ms = None          # board time of the reader's previous poll that answered (None: none yet)
         self.faults = []
         self.link_ok = True
         # a train braked to a standstill that the one-channel encoder sees move rolls (back on a slope, pushed, or
@@ -285,13 +285,13 @@ class OnboardUnit:
             self._sensor_failed("ips", exc)
         try:
             uid = self.rfid.poll(now_ms)
-            # the reader entered the tag's field in the odometer's run since its previous poll (a span too long for
-            # the wire tells nothing: that read is not reported)
-            odo = self.odo_mm
-            span = abs(odo - (odo if self._rfid_odo_mm is None else self._rfid_odo_mm))
-            self._rfid_odo_mm = odo
-            if uid is not None and len(self._tags) < wire.MAX_TAGS and span <= _SPAN_MAX_MM:
-                tag = [uid, odo, now_ms, span]
+            # the reader entered the tag's field since its previous poll that answered, `span` ms ago (time, not
+            # counts: a wheel that spins or a burst of counts is not travel); a span too long for the wire tells
+            # nothing, and that read is not reported
+            span = 0 if self._rfid_ms is None else wrap_diff(now_ms, self._rfid_ms)
+            self._rfid_ms = now_ms
+            if uid is not None and len(self._tags) < wire.MAX_TAGS and span <= _SPAN_MAX_MS:
+                tag = [uid, self.odo_mm, now_ms, span]
                 data = getattr(self.rfid, "data", None)   # a balise's telegram, 32 hex digits, when the tag has one
                 if data:
                     tag.append(data)

@@ -235,9 +235,9 @@ def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode
     v_mmps: encoder speed (mm/s); duty_pct: motor duty (%); mode: one of MODES (wire_zc.py); cseq: seq of the last
     accepted command (-1 if none); csid: the session id of that command (-1 if none: it tells the controller this
     report was made after its command arrived); ips: None or [t_ms, x_mm, y_mm] (newest fix since the last report,
-    stamped on the board's clock); tags: list of [uid_hex, odo_mm, t_ms, span_mm] read since the last report
-    (span_mm: the odometer's run since the reader's previous poll, in which the reader entered the tag's field; a
-    balise's telegram appended); faults: list of names from FAULTS (wire_zc.py); rng: None or [t_ms, gap_mm], the
+    stamped on the board's clock); tags: list of [uid_hex, odo_mm, t_ms, span_ms] read since the last report
+    (span_ms: the time since the reader's previous poll that answered, in which the reader entered the tag's field;
+    a balise's telegram appended); faults: list of names from FAULTS (wire_zc.py); rng: None or [t_ms, gap_mm], the
     newest gap to the train ahead measured by the onboard ranging since the last report (board clock; gap from this
     head to the leader's tail, mm).
     """

@@ -41,8 +41,8 @@ REPORT_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "t_ms", 0, WRAP_MASK, "
                "v_mmps", -20000, 20000, "duty", -100, 100,
                "cseq", -1, WRAP_MASK, "csid", -1, INT31)
 REPORT_OTHER = ("mode", "ips", "tags", "rng", "flt")
-SPAN_MAX_MM = 65535   # a tag read's span: the odometer's run since the reader's previous poll (mm)
-TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, WRAP_MASK, "span_mm", 0, SPAN_MAX_MM)
+SPAN_MAX_MS = 65535   # a tag read's span: the time since the reader's previous poll that answered (ms)
+TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, WRAP_MASK, "span_ms", 0, SPAN_MAX_MS)
 UID_HEX_LENGTHS = (8, 14, 20)   # MFRC522 uids of 4, 7 and 10 bytes
 _HEX = "0123456789abcdefABCDEF"
 
@@ -86,13 +86,13 @@ def check_report(msg, topic):
     _null_or_ints(msg, "ips", ("t_ms", 0, WRAP_MASK, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic, True)
     tags = msg.get("tags")
     if not isinstance(tags, list) or len(tags) > MAX_TAGS:
-        raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms, span_mm(, data)]"
+        raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms, span_ms(, data)]"
                         % (topic, MAX_TAGS))
     for tag in tags:
         if (not isinstance(tag, list) or not 4 <= len(tag) <= 5 or not _is_hex(tag[0], UID_HEX_LENGTHS)
                 or (len(tag) == 5 and not _is_hex(tag[4], (32,)))):
-            raise WireError("entry %r of 'tags' on %s must be [uid: 8, 14 or 20 hex digits, odo_mm, t_ms, span_mm] or "
-                            "[uid, odo_mm, t_ms, span_mm, data: 32 hex digits of the balise telegram]" % (tag, topic))
+            raise WireError("entry %r of 'tags' on %s must be [uid: 8, 14 or 20 hex digits, odo_mm, t_ms, span_ms] or "
+                            "[uid, odo_mm, t_ms, span_ms, data: 32 hex digits of the balise telegram]" % (tag, topic))
         check_ints(tag[1:4], TAG_INTS, topic, "tags")
     _null_or_ints(msg, "rng", ("t_ms", 0, WRAP_MASK, "gap_mm", -100000, _POS_MM), topic, False)
     faults = msg.get("flt")

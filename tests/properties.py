@@ -33,10 +33,10 @@ json_values = st.recursive(
 hex_text = st.sampled_from(wire.UID_HEX_LENGTHS).flatmap(
     lambda n: st.text("0123456789ABCDEFabcdef", min_size=n, max_size=n))
 board_ms = st.integers(0, WRAP)
-span_mm = st.integers(0, wire.SPAN_MAX_MM)
+span_ms = st.integers(0, wire.SPAN_MAX_MS)
 tags = st.lists(st.one_of(
-    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_mm).map(list),
-    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_mm,
+    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_ms).map(list),
+    st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_ms,
               st.text("0123456789abcdef", min_size=32, max_size=32)).map(list)), max_size=wire.MAX_TAGS)
 report_fields = st.fixed_dictionaries({
     "boot": st.integers(1, wire.BOOT_MAX), "seq": board_ms, "t_ms": board_ms, "odo_mm": st.integers(-INT31, INT31),
@@ -105,7 +105,7 @@ def report_conforms(msg):
             and (msg["rng"] is None or _ints(msg["rng"], [(0, WRAP), (-100000, 10 ** 6)]))
             and type(msg["tags"]) is list and len(msg["tags"]) <= wire.MAX_TAGS
             and all(type(t) is list and len(t) in (4, 5) and _hex(t[0], (8, 14, 20))
-                    and _ints(t[1:4], [(-INT31, INT31), (0, WRAP), (0, wire.SPAN_MAX_MM)])
+                    and _ints(t[1:4], [(-INT31, INT31), (0, WRAP), (0, wire.SPAN_MAX_MS)])
                     and (len(t) == 4 or _hex(t[4], (32,)))
                     for t in msg["tags"])
             and type(msg["flt"]) is list and all(f in wire.FAULTS for f in msg["flt"]))

@@ -61,6 +61,12 @@ def test_calibrate_command_on_recorded_files(tmp_path, capsys):
     assert cli_main(["calibrate", "tags", "--reports", str(run), "--start-s-m", "0.25"]) == 0
     # 0.25 + 1.5 m of odometer, and the reader reads 15 mm before its head is over the tag (no speed reported)
     assert '{uid: "DEADBEEF", s_m: 1.765}' in capsys.readouterr().out
+    # read 20 ms after the reader's previous poll at 0.4 m/s: the field's edge came up to 8 mm before, 4 on average
+    late = tmp_path / "late.jsonl"
+    late.write_text("\n".join(json.dumps(r) for r in (
+        {"odo_mm": 0, "tags": []}, {"odo_mm": 1900, "v_mmps": 400, "tags": [["DEADBEEF", 1500, 5, 20]]})))
+    assert cli_main(["calibrate", "tags", "--reports", str(late), "--start-s-m", "0.25"]) == 0
+    assert '{uid: "DEADBEEF", s_m: 1.761}' in capsys.readouterr().out
     # a tag that carries a telegram is read as four fields, as reports carry them now
     run4 = tmp_path / "run4.jsonl"
     telegram = "0123456789abcdef" * 2

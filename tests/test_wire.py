@@ -212,10 +212,10 @@ def reseal(body: dict, topic="cbtc/train/A/report"):
     ({"tags": [["04A1B2C3", 10 ** 400, 990, 8]]}, "('tags', 'odo_mm')"),
     ({"tags": [["04A1B2C3", 1200, -1, 8]]}, "('tags', 't_ms')"),
     ({"tags": [["04A1B2C3", 1200, 990, 8, "00" * 15 + "GG"]]}, "32 hex digits"),
-    ({"tags": [["04A1B2C3", 1200, 990, -1]]}, "('tags', 'span_mm')"),              # a run is never negative
-    ({"tags": [["04A1B2C3", 1200, 990, 70000]]}, "('tags', 'span_mm')"),
-    ({"tags": [["04A1B2C3", 1200, 990]]}, "span_mm]"),                            # no span: version 1's entry
-    ({"tags": [["04A1B2C3", 1200, 990, "00" * 16]]}, "('tags', 'span_mm')"),       # its telegram where the span goes
+    ({"tags": [["04A1B2C3", 1200, 990, -1]]}, "('tags', 'span_ms')"),              # a time is never negative
+    ({"tags": [["04A1B2C3", 1200, 990, 70000]]}, "('tags', 'span_ms')"),
+    ({"tags": [["04A1B2C3", 1200, 990]]}, "span_ms]"),                            # no span: version 1's entry
+    ({"tags": [["04A1B2C3", 1200, 990, "00" * 16]]}, "('tags', 'span_ms')"),       # its telegram where the span goes
     ({"ips": [950, True, -200]}, "('ips', 'x_mm')"),
     ({"rng": [950, 1.5]}, "('rng', 'gap_mm')"),
     ({"extra": 1}, "unknown field 'extra'"),

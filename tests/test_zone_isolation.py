@@ -38,7 +38,7 @@ def extreme_report(rng, zc, key):
         ips=rng.choice([None, [extreme(rng, 0, W, t) & W, extreme(rng, -10 ** 6, 10 ** 6),
                                extreme(rng, -10 ** 6, 10 ** 6)]]),
         tags=rng.choice([[], [["04A1B2C3", extreme(rng, -INT31, INT31, odo), extreme(rng, 0, W, t) & W,
-                               extreme(rng, 0, wire.SPAN_MAX_MM)]]]),
+                               extreme(rng, 0, wire.SPAN_MAX_MS)]]]),
         faults=rng.choice([[], [], ["enc_fail"]]),
         rng=rng.choice([None, [extreme(rng, 0, W, t) & W, extreme(rng, -100000, 10 ** 6)]]))
     return wire.encode_report(key, "A", **fields)

@@ -51,11 +51,13 @@ def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None, odo_per_
     """Each tag's position along the track from a run's reports: where the head was at the read, from the odometer
     (`odo_per_m`: odometer metres per true metre, from the encoder calibration; 1: it reads true), plus how far short
     of a tag the head is when the reader first reads it: `read_ahead_m` (the reader's range, ahead of the head) less
-    half the odometer's run since the reader's previous poll (the read's `span_mm`: the field's edge lies in it).
+    half the way the train ran since the reader's previous poll (the read's `span_ms` at the speed of the report
+    carrying the read: the field's edge lies in that run).
 
-    `reports`: decoded report dicts in order (fields `odo_mm` and `tags`); start_odo_mm defaults to the first
-    report's odometer, taken where the train's head stood at start_s_m. Several reads of one tag are averaged (on a
-    loop, within one lap of the first read). Returns [(uid, s_m, reads)] sorted by s_m.
+    `reports`: decoded report dicts in order (fields `odo_mm`, `tags`, and `v_mmps` for a read's lateness);
+    start_odo_mm defaults to the first report's odometer, taken where the train's head stood at start_s_m. Several
+    reads of one tag are averaged (on a loop, within one lap of the first read). Returns [(uid, s_m, reads)] sorted
+    by s_m.
     """
     if not odo_per_m > 0.0:
         raise ConfigError(f"survey_tags: odometer metres per metre must be > 0, got {odo_per_m}")
@@ -63,9 +65,10 @@ def survey_tags(reports, start_s_m=0.0, start_odo_mm=None, loop_m=None, odo_per_
     for report in reports:
         if start_odo_mm is None:
             start_odo_mm = report["odo_mm"]
-        for entry in report.get("tags", []):   # [uid, odo_mm, t_ms, span_mm] and a balise's telegram
-            uid, odo_mm, span_mm = entry[0], entry[1], entry[3]
-            s_m = start_s_m + (odo_mm - 0.5 * span_mm - start_odo_mm) / 1000.0 / odo_per_m + read_ahead_m
+        for entry in report.get("tags", []):   # [uid, odo_mm, t_ms, span_ms] and a balise's telegram
+            uid, odo_mm = entry[0], entry[1]
+            late_mm = 0.5 * abs(report.get("v_mmps", 0)) * entry[3] / 1000.0
+            s_m = start_s_m + (odo_mm - late_mm - start_odo_mm) / 1000.0 / odo_per_m + read_ahead_m
             if loop_m:
                 s_m %= loop_m
                 first = reads.get(uid, [s_m])[0]

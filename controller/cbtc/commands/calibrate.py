@@ -89,7 +89,7 @@ def _all_reports(path):
         tags = report.get("tags", [])
         if not isinstance(tags, list) or any(not isinstance(t, list) or len(t) < 4 or not isinstance(t[0], str)
                                              or not all(isinstance(v, (int, float)) for v in t[1:4]) for t in tags):
-            raise ConfigError(f"{path} report {number}: 'tags' must be a list of [uid, odo_mm, t_ms, span_mm, ...] "
+            raise ConfigError(f"{path} report {number}: 'tags' must be a list of [uid, odo_mm, t_ms, span_ms, ...] "
                               f"entries (docs/protocol.md, version {wire.VERSION}); record the run again with boards "
                               f"of this version, got {tags!r}")
     return reports

@@ -66,9 +66,8 @@ class ReferenceUkf:
         return self._update(np.array([x_m, y_m]), np.eye(2) * self.noise.ips_var_m2, self._gate2, hx_ips,
                             np.subtract, layout=self.layout)
 
-    def update_tag(self, tag_s_m: float, d_m: float, in_field: bool = False, span_m: float = 0.0) -> bool:
-        x = self.ukf.x
-        offset_m, var_m2 = tag_read_model(self.noise, span_m / (1.0 + x[K]) if len(x) > K else span_m, in_field)
+    def update_tag(self, tag_s_m: float, d_m: float, in_field: bool = False, span_s: float = 0.0) -> bool:
+        offset_m, var_m2 = tag_read_model(self.noise, float(self.ukf.x[V]) * span_s, in_field)
         return self._update(np.array([tag_s_m, d_m]), np.diag([var_m2, self.noise.odo_var_m2]), self._gate2, hx_tag,
                             self._along, rfid_offset_m=offset_m)
 

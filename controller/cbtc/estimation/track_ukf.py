@@ -80,15 +80,15 @@ def process_noise(n, dt_s, v_mps, k, noise: NoiseModel):
     return Q
 
 
-def tag_read_model(noise: NoiseModel, span_m: float, in_field: bool = False):
+def tag_read_model(noise: NoiseModel, late_m: float, in_field: bool = False):
     """(how far the head is short of a tag at its read (m), the variance of that (m^2)). Driven into the field, the
-    reader read the tag at the first poll after the head came `rfid_range_m` short of it, and the board says how far
-    the head ran since the poll before (`span_m`): the read lands anywhere in that run, uniformly. A train that has
-    not moved since it was first heard may have stood in the field from the start (a boot over a tag): the head is
-    then anywhere within `rfid_range_m` either side of the tag."""
+    reader read the tag at the first poll after the head came `rfid_range_m` short of it: the read lands anywhere in
+    the `late_m` the head ran since the poll before (the board says how long ago that was), uniformly. A train that
+    has not moved since it was first heard may have stood in the field from the start (a boot over a tag): the head
+    is then anywhere within `rfid_range_m` either side of the tag."""
     if in_field:
         return 0.0, noise.tag_var_m2 + noise.rfid_range_m ** 2 / 3.0
-    late_m = abs(span_m)
+    late_m = abs(late_m)
     return noise.rfid_range_m - 0.5 * late_m, noise.tag_var_m2 + late_m ** 2 / 12.0
 
 
@@ -320,23 +320,19 @@ class TrackUkf:
         return self._position_update(self.layout.xy_m, (float(x_m), float(y_m)), ((var, 0.0), (0.0, var)),
                                      self._gate2)
 
-    def update_tag(self, tag_s_m: float, d_m: float, in_field: bool = False, span_m: float = 0.0) -> bool:
-        """Fold in a balise read: the tag at `tag_s_m` was read when the odometer showed `d_m`, `span_m` odometer
-        metres after the reader's previous poll; True when used. `in_field`: the train may have stood in the
-        reader's field when the read came (tag_read_model). The read is
+    def update_tag(self, tag_s_m: float, d_m: float, in_field: bool = False, span_s: float = 0.0) -> bool:
+        """Fold in a balise read: the tag at `tag_s_m` was read when the odometer showed `d_m`, `span_s` seconds after
+        the reader's previous poll (the head ran the filter's speed times that in between); True when used.
+        `in_field`: the train may have stood in the reader's field when the read came (tag_read_model). The read is
         linear in the state ([s + offset, d]), so the unscented sums are exactly those of the Kalman update, taken
         along the track (the short way round a loop's seam)."""
         x, P = self.mean, self.cov
         cholesky_upper(P, self._spread)   # a covariance with no sigma points raises, as drawing them would
-        offset_m, var_m2 = tag_read_model(self.noise, self.true_m(span_m), in_field)
+        offset_m, var_m2 = tag_read_model(self.noise, x[V] * span_s, in_field)
         s_m2 = ((P[S][S] + var_m2, P[S][D]), (P[D][S], P[D][D] + self.noise.odo_var_m2))
         cross = [(row[S], row[D]) for row in P]
         y = (circular_offset_m(tag_s_m - (x[S] + offset_m), 0.0, self._loop_m), d_m - x[D])
         return self._kalman(cross, s_m2, y, self._gate2)
-
-    def true_m(self, odometer_m: float) -> float:
-        """The true metres an odometer run of `odometer_m` stands for, at the learnt scale."""
-        return odometer_m / (1.0 + self.mean[K]) if self.n > K else odometer_m
 
     def update_range(self, radio_x_m: float, radio_y_m: float, range_m: float, sigma_m: float) -> bool:
         """Fold in a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at a surveyed position; True when

@@ -129,7 +129,7 @@ class _Event:
 
     def __init__(self, t_s, kind, data):
         self.t_s = t_s
-        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field, span_m);
+        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field, span_s);
         #                       "roll": (step_m, run_m: the roll's steps before, d_m); "range": (radio_x_m, radio_y_m,
         #                       range_m, sigma_m); "step": (the step's share of the newest travel m, scale sigma)
         self.data = data
@@ -543,8 +543,8 @@ class UkfEstimator:
             else:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
-                tag_s_m, d_m, in_field, span_m = event.data
-                offset_m, _var = tag_read_model(self.noise, f.true_m(span_m), in_field)
+                tag_s_m, d_m, in_field, span_s = event.data
+                offset_m, _var = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
                 here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
                 story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
                 if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
@@ -631,11 +631,11 @@ class UkfEstimator:
                    if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
         return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
 
-    def _arbitrate(self, f, consensus, tag_s_m, d_m, in_field, span_m):
+    def _arbitrate(self, f, consensus, tag_s_m, d_m, in_field, span_s):
         """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
         three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
         _low, _high, anchor_m, sigma_m = consensus
-        offset_m, var_m2 = tag_read_model(self.noise, f.true_m(span_m), in_field)
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
         read_s_m = tag_s_m - offset_m
         tag_sigma_m = sqrt(var_m2)
         ring_m = self.layout.loop_length_m
@@ -673,8 +673,8 @@ class UkfEstimator:
             return None
         d_m, v_mps = odometer
         if event.kind == "tag":
-            tag_s_m, d_m, in_field, span_m = event.data   # the scale is not learnt yet: the odometer's run as it is
-            offset_m, var_m2 = tag_read_model(self.noise, span_m, in_field)
+            tag_s_m, d_m, in_field, span_s = event.data   # the board's speed, no faster than the motor drives
+            offset_m, var_m2 = tag_read_model(self.noise, min(abs(v_mps), self._top_mps) * span_s, in_field)
             s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
             used = _State(None, tags_used=1)
         else:
