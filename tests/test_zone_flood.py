@@ -119,3 +119,27 @@ def test_a_board_with_another_key_is_said_once_per_10_s_with_the_count_the_key_s
     assert "(x200 since this line last)" in said[1] and "(x200 since this line last)" in said[2]
     assert all("keys file keys.json" in line and "cbtc flash --keys FILE" in line for line in said)
     assert zc.trains["A"].reports_rejected == 500 and zc.refusals.total("A") == 500
+
+
+def test_a_board_of_another_protocol_version_is_told_to_be_flashed_with_this_ones_firmware():
+    """An authenticated report that names another protocol version (a board flashed before an upgrade): refused, and
+    the line says what to do."""
+    import json
+
+    config = paper_scenario(load_layout("itb_square"), seed=0, laps=None, duration_s=30.0)
+    keys = {spec.train_id: bytes(16) for spec in config.trains}
+    zc = build_zone(config, keys, Quiet(), lambda: 0.0)
+    lines = Lines()
+    logger = logging.getLogger("cbtc.zone")
+    logger.addHandler(lines)
+    try:
+        zc.start()
+        payload = wire.encode_report(bytes(16), "A", 1, 1, 50, 0, 0, 0, "idle", -1, -1, None, [], [])
+        body = json.loads(payload[:payload.rindex(b"#")])
+        body["v"] = wire.VERSION - 1
+        zc.on_report(wire.topic_report("A"), wire.seal(bytes(16), wire.topic_report("A"), json.dumps(body).encode()))
+    finally:
+        logger.removeHandler(lines)
+    assert len(lines.lines) == 1 and lines.lines[0].startswith("train A: invalid report"), lines.lines
+    assert f"names version {wire.VERSION - 1}" in lines.lines[0] and "cbtc flash" in lines.lines[0]
+    assert zc.trains["A"].reports_rejected == 1

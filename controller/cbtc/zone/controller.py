@@ -279,7 +279,10 @@ class ZoneController:
             return
         except wire.WireError as exc:
             self.invalid_reports += 1
-            self._refuse(state, "invalid report", exc.reason, recv_s)
+            # a board of another protocol version (authenticated: the key matched) needs this version's firmware
+            advice = f"flash the board with this version's firmware (cbtc flash), which speaks version {wire.VERSION}" \
+                if " names version " in exc.reason else ""
+            self._refuse(state, "invalid report", exc.reason, recv_s, advice=advice)
             return
         previous = state.report if state.report is not None and state.report["boot"] == report["boot"] else None
         reason = state.boots.refusal(report, recv_s)
