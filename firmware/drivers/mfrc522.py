@@ -213,7 +213,7 @@ class Mfrc522:
 
     def poll(self, now_ms):
         """A read at board time `now_ms` (monotonic ms): a tag's UID once per passage, else None. Every call reads
-        (the board's loop sets the pace, and reports how far it ran between two reads); the same UID is reported
+        (the board's loop sets the pace, and reports how long it was between two reads); the same UID is reported
         again only after it has been absent for 300 ms.
         """
         if not self.present:
