@@ -49,6 +49,10 @@ class Bench:
     def last_report(self):
         return wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])
 
+    def reported_tags(self):
+        """Every tag entry of every report sent so far, in order."""
+        return [tag for topic, payload in self.sent for tag in wire.decode_report(KEY, topic, payload)["tags"]]
+
     def command(self, v_mmps=500, eoa_mm=5000, ttl_ms=800, sid=1, seq=None, rseq=None, key=KEY, stop_mm=None,
                 rpt_ms=0, odo_mm_per_m=1000):
         if seq is None:
@@ -567,9 +571,7 @@ def test_a_tag_read_carries_the_time_since_the_readers_previous_poll_that_answer
     bench.step(v_mmps=400)
     for _ in range(2):
         bench.step(v_mmps=400)
-    first = [tag for _topic, payload in bench.sent for tag in wire.decode_report(KEY, CMD.replace("cmd", "report"),
-                                                                                  payload)["tags"]]
-    assert first == [["04A1B2C3", 48, 120, 20]]
+    assert bench.reported_tags() == [["04A1B2C3", 48, 120, 20]]
     rfid.failing = True
     for _ in range(3):                               # three passes the reader did not answer
         bench.step(v_mmps=400)
@@ -578,6 +580,5 @@ def test_a_tag_read_carries_the_time_since_the_readers_previous_poll_that_answer
     bench.step(v_mmps=400)
     for _ in range(3):
         bench.step(v_mmps=400)
-    tags = [tag for _topic, payload in bench.sent for tag in wire.decode_report(KEY, CMD.replace("cmd", "report"),
-                                                                                 payload)["tags"]]
-    assert tags[-1] == ["04A1B2C4", 96, 240, 80]     # since the last poll that answered: four passes
+    assert bench.reported_tags()[-1] == ["04A1B2C4", 96, 240, 80]   # since the last poll that answered: four passes
+    assert obu._SPAN_MAX_MS == wire.SPAN_MAX_MS   # the longest span the board sends is the longest the wire takes
