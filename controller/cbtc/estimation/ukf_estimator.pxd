@@ -15,14 +15,14 @@ cdef class _State:
     cdef object __weakref__
     cdef public object snap, ips_used, ips_rejected, tags_used, tags_rejected, gated
     cdef public object relocations, consensus, innovations, disagree, disagreements, tag_offset
-    cdef public object speed_steps, doubt
+    cdef public object speed_steps, doubt, pending, agreeing, reach, tag_story
 
 cdef class UkfEstimator:
     cdef dict __dict__
     cdef object __weakref__
     cdef public object layout, profile, params, noise, localized, balises
     cdef public object late_measurements, _clock, _events, _keys, _estimate_memo, _states
-    cdef public object _base, _doubt_span, _trimmed, _filter, _filter_holds, _board_odo_m
+    cdef public object _base, _doubt_span, _declared, _trimmed, _filter, _filter_holds, _board_odo_m
     cdef public object _first_odo_m, _board_t_s, _top_mps, _rolled_m, _roll_run_m, _board_v_mps
     cdef public object _board_duty_pct, _board_before, _envelope, _motor, speed_drifts, _scale_sigma0
 

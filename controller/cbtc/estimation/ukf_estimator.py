@@ -10,7 +10,10 @@ time, so a better clock offset learnt later never reorders anything. Measurement
 time order with the filter state after each; one that lands before newer ones (a late IPS fix, a report overtaken
 in transit) is inserted at its time and the newer ones are re-run from the state just before it. Dropouts need
 nothing: the next measurement predicts over the gap. A train is placed by its first balise read, or by the IPS
-only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.estimation.fix_consensus).
+only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.estimation.fix_consensus); it is
+`confirmed` once a second, independent reference agrees (a balise after the IPS; a second balise or the IPS after a
+balise). Until then the estimate covers the placement's lasting bias, and a balise the filter gates places the train
+afresh rather than being turned away.
 
 Gated IPS fixes that agree among themselves (`locate_fixes` of the last `relocate_after`) mean the sensors disagree:
 either the IPS is off (multipath) or the wheel is (slip, spin, a train lifted and put back), and nothing but a balise
@@ -63,6 +66,11 @@ class UkfParams:
     bias_fixes: int = 16              # newest IPS fixes whose innovations' median tells a bias of the wheel (from
     #                                   relocate_after of them on): a spin inside the speed envelope's band shows there
     locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
+    ips_bias_m: float = 0.3           # the lasting error an IPS placement may carry (multipath: a beacon's path
+    #                                   reflected off a wall or a hand is tens of cm long; its noise is ips_sigma_m),
+    #                                   covered until a balise confirms it
+    tag_bias_m: float = 0.03          # how far a tag may lie from where the layout says (laid by hand; cbtc calibrate
+    #                                   measures them to mm), covered until a second reference confirms a tag placement
     history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
     step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
     step_scale_sigma: float = 0.15    # a speed step beyond that re-opens the scale to this 1-sigma (wheel slip/spin:
@@ -116,6 +124,8 @@ _ADHESION_MPS2 = 3.0   # no train stops faster than this (wheel adhesion; the bo
 _SCALE_K_SIGMA = 3.0   # the scale's bounds there, in its sigmas
 _SPEED_LAG_S = 0.03    # a board's measured speed lags the train's at most this: half its window and a count or two
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
+_STORY_TOL_M = 0.1    # two gated balise reads in a row whose stories differ by no more (m) tell the same story
+_WORN_SHARE = 0.15    # ... that a wheel this far wrong (worn, dirty, slipping: of the travel) can tell
 _KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
 _ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
 _MOVING_MPS = 0.05   # speeds from here up are steady enough for a step between two reports to tell of the wheel
@@ -140,11 +150,12 @@ class _State:
     """The filter after an event, with the counters that depend on which measurements were used."""
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
-                 "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps", "doubt")
+                 "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps", "doubt",
+                 "pending", "agreeing", "reach", "tag_story")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
                  consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0,
-                 doubt=None):
+                 doubt=None, pending=None, agreeing=0, reach=None, tag_story=None):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -163,12 +174,23 @@ class _State:
         self.speed_steps = speed_steps  # reported speeds that changed faster than the train can: the wheel slipped
         self.doubt = doubt             # (low_m, high_m): where the train may be, behind (<= 0) and ahead (>= 0) of the
         #                                filter's position, from before it was located afresh; None once a balise
-        #                                read has confirmed the position (keep_doubt)
+        #                                read has confirmed the position (keep_doubt), or while the placement awaits
+        #                                its second reference (`pending`)
+        self.pending = pending         # what placed the train, "ips" or "tag", while no second, independent reference
+        #                                has confirmed it (a balise; after a tag, a second tag or the IPS); None: both
+        self.agreeing = agreeing       # IPS fixes in a row the filter took since a tag placed the train
+        self.reach = reach             # (low_s_m, high_s_m, d_m, ref_d_m): where the head may be when the odometer
+        #                                read d_m, from the last balise (or placement, at odometer ref_d_m) on by the
+        #                                wheel alone, at the lowest and highest scale the filter allows: what no IPS
+        #                                bias can move (dead reckoning)
+        self.tag_story = tag_story     # where the newest balise read, gated, put the train less the filter's
+        #                                position (m); None once a read is taken, or when the IPS shows it wrong
 
     def copy_with(self, snap):
         return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
                       self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
-                      self.tag_offset, self.speed_steps, self.doubt)
+                      self.tag_offset, self.speed_steps, self.doubt, self.pending, self.agreeing, self.reach,
+                      self.tag_story)
 
 
 class UkfEstimator:
@@ -189,6 +211,7 @@ class UkfEstimator:
         self._states = []            # _states[i]: after _events[i]; None while unlocated
         self._base = None            # state before _events[0]
         self._doubt_span = None      # (low, high) track positions from before a fresh start (keep_doubt)
+        self._declared = None        # (s_m, tol_m) an operator declared the head stands at (declare_position)
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
         self._filter_holds = None    # the state whose snapshot _filter holds as it stands (no restore needed)
@@ -220,6 +243,38 @@ class UkfEstimator:
         """The estimate still covers the span `keep_doubt` gave it: no balise read has confirmed the position yet."""
         state = self._newest
         return state is not None and state.doubt is not None
+
+    def declare_position(self, s_m: float, tol_m: float) -> None:
+        """An operator declares that the train's head stands within `tol_m` of `s_m` (a track position): a reference
+        of its own, independent of the sensors, for the placement that follows. A placement that agrees with it is
+        confirmed, its estimate covering the declared span until a balise is read; one that does not is pending as
+        without it. No-op once located."""
+        if not self.localized:
+            self._declared = (self.layout.wrap(s_m), tol_m)
+
+    def _with_declared(self, s_m, sigma_s_m):
+        """(s_m, sigma_s_m) of the placement at `s_m` (1-sigma `sigma_s_m`) fused with the declared position
+        (declare_position, its tolerance taken as 3 sigma) when the two agree within 3 sigma of both; None when they
+        do not, or nothing was declared."""
+        declared = self._declared
+        if declared is None:
+            return None
+        d_s_m, tol_m = declared
+        d_sigma_m = max(tol_m / 3.0, 1e-4)
+        off_m = circular_offset_m(d_s_m, s_m, self.layout.loop_length_m)
+        if abs(off_m) > 3.0 * hypot(sigma_s_m, d_sigma_m):
+            return None
+        w = sigma_s_m ** 2 / (sigma_s_m ** 2 + d_sigma_m ** 2)
+        return s_m + w * off_m, sqrt((1.0 - w) * sigma_s_m ** 2)
+
+    @property
+    def confirmed(self) -> bool:
+        """Located, and by two independent references: what placed the train (the IPS or a tag) and a balise where
+        the filter expected it (after a tag: a second tag, or `locate_fixes` IPS fixes in a row). Until then the
+        estimate covers the placement's bias (`ips_bias_m`, `tag_bias_m`) and the zone lets the train move only at
+        restricted speed."""
+        state = self._newest
+        return state is not None and state.pending is None
 
     def distrust_wheel(self) -> None:
         """Locate the train with its encoder scale open (1-sigma `step_scale_sigma`): after the board named an encoder
@@ -519,27 +574,47 @@ class UkfEstimator:
         f.predict_to(event.t_s)
         new = state.copy_with(None)
         if event.kind == "odo":
+            new.reach = self._reckon(f, state.reach, event.data[0])
             f.update_odometer(event.data[0])
         elif event.kind == "roll":
             # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
             step_m, run_m, d_m = event.data
+            new.reach = self._widen_reach(state.reach, step_m)
             f.widen_position(sqrt(step_m * (step_m + 2.0 * run_m)))
             f.hold_still(_ROLL_MPS, d_m)
         elif event.kind == "step":
             # the wheel's scale changed: re-opened, so the position widens with the travel and the IPS and balises
             # learn it again; the travel since the previous report is in doubt by the step's share
             new.speed_steps += 1
+            new.reach = self._widen_reach(state.reach, event.data[0])
             f.widen_position(event.data[0])
             f.reopen_scale(event.data[1])
         elif event.kind == "tag":
             if f.update_tag(*event.data):
+                # a balise where the filter expects it: a second, independent reference to what placed the train
                 new.tags_used += 1
-                new.tag_offset = new.doubt = None
+                new.tag_offset = new.doubt = new.pending = new.tag_story = None
+                new.reach = self._reach_at_tag(f, *event.data)
             elif state.consensus is not None and self._arbitrate(f, state.consensus, *event.data):
                 new.tags_used += 1
                 new.relocations += 1
                 new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
-                new.tag_offset = new.doubt = None
+                new.tag_offset = new.doubt = new.pending = new.tag_story = None
+                new.reach = self._reach_at_tag(f, *event.data)
+            elif state.pending is not None or self._story_repeats(f, state.reach, state.tag_story,
+                                                                        *event.data):
+                # the placement rests on one reference, and a balise says it is wrong; or a second balise in a row
+                # tells the same story of a filter gone astray (a wheel worn long, and no IPS): the train is placed
+                # at the balise, covering where it was before, until a second reference confirms one of them
+                new.tags_used += 1
+                new.relocations += 1
+                if state.pending is None and f.n > K:   # the wheel was wrong: its scale is learnt afresh
+                    f.reopen_scale(3.0 * self.params.scale_sigma)
+                new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
+                new.tag_offset = new.tag_story = None
+                new.doubt = self._replace_at_tag(f, state.doubt, *event.data)
+                new.pending, new.agreeing = "tag", 0
+                new.reach = self._reach_at_tag(f, *event.data)
             else:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
@@ -547,6 +622,7 @@ class UkfEstimator:
                 offset_m, _var = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
                 here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
                 story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
+                new.tag_story = story_m
                 if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
                     new.tag_offset = story_m
         elif event.kind == "range":
@@ -563,13 +639,21 @@ class UkfEstimator:
             if not suspect and f.update_ips(*event.data):
                 new.ips_used += 1
                 new.gated, new.consensus = (), None
+                if state.pending == "tag":
+                    # the IPS, independent of the tag, agrees with a tag placement: `locate_fixes` in a row confirm it
+                    new.agreeing += 1
+                    if new.agreeing >= self.params.locate_fixes:
+                        new.doubt = new.pending = None
             else:
+                new.agreeing = 0
                 new.ips_rejected += 1
                 new.gated = (state.gated + (fix_s_m - d_m,))[-self.params.relocate_after:]
                 new.consensus = self._consensus(s_m, d_m, new.gated) or state.consensus
             new.disagree = self._disagreement(new.consensus, new.innovations)
             if new.tag_offset is not None and self._ips_refutes(new.innovations, new.tag_offset):
                 new.tag_offset = None
+            if new.tag_story is not None and self._ips_refutes(new.innovations, new.tag_story):
+                new.tag_story = None
             if new.disagree is not None and state.disagree is None:
                 new.disagreements += 1
         self._keep_wheel_in_doubt(f)
@@ -646,6 +730,73 @@ class UkfEstimator:
             f.reopen_scale(3.0 * self.params.scale_sigma)
         return True
 
+    def _reckon(self, f, reach, d_m):
+        """`reach` carried to odometer `d_m` by the wheel alone, at the lowest and highest scale the filter (`f`)
+        allows (3 sigma, within the band a wheel can have)."""
+        if reach is None:
+            return None
+        low_s_m, high_s_m, d0_m, ref_d_m = reach
+        run_m = d_m - d0_m
+        if run_m == 0.0:
+            return reach
+        if f.n > K:
+            k, sd = float(f.mean[K]), sqrt(max(f.cov[K][K], 0.0))
+        else:
+            k, sd = 0.0, self._scale_sigma0
+        low = min(max(1.0 + k - _SCALE_K_SIGMA * sd, _WHEEL_LOWEST), _WHEEL_HIGHEST)
+        high = min(max(1.0 + k + _SCALE_K_SIGMA * sd, _WHEEL_LOWEST), _WHEEL_HIGHEST)
+        if run_m < 0.0:
+            low, high = high, low
+        wrap = self.layout.wrap
+        return wrap(low_s_m + run_m / high), wrap(high_s_m + run_m / low), d_m, ref_d_m
+
+    @staticmethod
+    def _widen_reach(reach, by_m):
+        """`reach` widened `by_m` either way (travel of unknown sign: a roll, a speed step's share)."""
+        if reach is None:
+            return None
+        return reach[0] - by_m, reach[1] + by_m, reach[2], reach[3]
+
+    def _reach_at_tag(self, f, tag_s_m, d_m, in_field, span_s):
+        """The reach a balise read gives: where the read puts the head, 3 sigma of the read (the tag's placement
+        as surveyed, `tag_sigma_m`, and the reader's field and poll) either way, at odometer `d_m`."""
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
+        return self._reach_around(tag_s_m - offset_m, 3.0 * sqrt(var_m2), d_m)
+
+    def _reach_around(self, s_m, half_m, d_m):
+        wrap = self.layout.wrap
+        return wrap(s_m - half_m), wrap(s_m + half_m), d_m, d_m
+
+    def _story_repeats(self, f, reach, story_m, tag_s_m, d_m, in_field, span_s):
+        """True when a balise read the filter gates tells the story the one before told (`story_m`, the newest gated
+        read's position less the filter's), to within _STORY_TOL_M or a quarter of it, the same way, and no further
+        off than a wheel _WORN_SHARE wrong could have taken the filter since its last reference (`reach`): two
+        balises in a row, the most accurate reference, agree with each other and not with the filter. Reads of other
+        tags (misplaced, swapped, misread) put the train at random places, most a tag spacing or more away: they do
+        not repeat."""
+        if story_m is None or reach is None:
+            return False
+        offset_m, _var = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
+        here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
+        now_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
+        worn_m = _WORN_SHARE * abs(d_m - reach[3]) + _STORY_TOL_M
+        return now_m * story_m > 0.0 and abs(now_m - story_m) <= max(_STORY_TOL_M, 0.25 * abs(story_m)) \
+            and abs(now_m) <= worn_m
+
+    def _replace_at_tag(self, f, doubt, tag_s_m, d_m, in_field, span_s):
+        """Restart the position at a balise read the filter gated and return the doubt (behind <= 0, ahead >= 0 of
+        the new position) that covers the position before it (3 sigma and its own doubt) and the tag's bias."""
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
+        old_s_m, spread_m = float(f.mean[S]), 3.0 * sqrt(max(f.cov[S][S], 0.0))
+        low_m, high_m = doubt if doubt is not None else (0.0, 0.0)
+        s_m = self.layout.wrap(tag_s_m - offset_m + float(f.mean[D]) - d_m)
+        f.relocate(s_m, sqrt(var_m2))
+        ring_m = self.layout.loop_length_m
+        behind_m, ahead_m = (circular_offset_m(self.layout.wrap(old_s_m + x), s_m, ring_m)
+                             for x in (low_m - spread_m, high_m + spread_m))
+        bias_m = self.params.tag_bias_m
+        return min(-bias_m, behind_m), max(bias_m, ahead_m)
+
     def _load(self, state):
         if self._filter is None:
             t_s, x, P = state.snap
@@ -665,7 +816,8 @@ class UkfEstimator:
 
     def _locate(self, event):
         """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
-        ranges alone cannot. Called only while unlocated, so every IPS event up to this one is one of those fixes."""
+        ranges alone cannot. Either placement is pending (`confirmed`) until a second, independent reference agrees.
+        Called only while unlocated, so every IPS event up to this one is one of those fixes."""
         if event.kind in ("odo", "range", "roll", "step"):
             return None
         odometer = self._odometer_at(event.t_s)
@@ -676,7 +828,14 @@ class UkfEstimator:
             tag_s_m, d_m, in_field, span_s = event.data   # the board's speed, no faster than the motor drives
             offset_m, var_m2 = tag_read_model(self.noise, min(abs(v_mps), self._top_mps) * span_s, in_field)
             s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
-            used = _State(None, tags_used=1)
+            bias_m = self.params.tag_bias_m
+            fused = self._with_declared(s_m, sigma_s_m)
+            if fused is not None:   # a tag and the operator agree
+                s_m, sigma_s_m = fused
+                used = _State(None, tags_used=1)
+            else:
+                used = _State(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
+            used.reach = self._reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
         else:
             anchors = []
             for e in self._events:
@@ -688,8 +847,20 @@ class UkfEstimator:
             if placed is None:
                 return None
             s_m, sigma_s_m = placed[0] + d_m, placed[1]
-            doubt = None if self._doubt_span is None else span_offsets_m(self.layout, self._doubt_span, s_m)
-            used = _State(None, ips_used=self.params.locate_fixes, doubt=doubt)
+            # fixes of one IPS may share one lasting error (multipath): the placement covers it until a balise
+            bias_m = self.params.ips_bias_m
+            fused = self._with_declared(s_m, sigma_s_m)
+            if fused is not None:   # the IPS and the operator agree: both placements, fused
+                s_m, sigma_s_m = fused
+            low_m, high_m = (0.0, 0.0) if self._doubt_span is None else \
+                span_offsets_m(self.layout, self._doubt_span, s_m)
+            if fused is not None:
+                used = _State(None, ips_used=self.params.locate_fixes,
+                              doubt=None if self._doubt_span is None else (low_m, high_m))
+            else:
+                used = _State(None, ips_used=self.params.locate_fixes,
+                              doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
+            used.reach = self._reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
         with_scale = self._scale_sigma0 > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
         top_mps = self._top_mps
@@ -754,9 +925,21 @@ class UkfEstimator:
             ahead_m, behind_m = max(ahead_m, state.tag_offset), max(behind_m, -state.tag_offset)
         if state.doubt is not None:
             ahead_m, behind_m = max(ahead_m, state.doubt[1]), max(behind_m, -state.doubt[0])
+        sigma_s_m = sqrt(max(var_s, 0.0))
+        reach = state.reach
+        if reach is not None:
+            # the wheel alone from the last balise puts the head there, whatever the IPS has pulled the filter to:
+            # beyond 3 sigma, covered too
+            ring_m = self.layout.loop_length_m
+            low_m = circular_offset_m(reach[0], x[S], ring_m) + 3.0 * sigma_s_m
+            high_m = circular_offset_m(reach[1], x[S], ring_m) - 3.0 * sigma_s_m
+            if low_m < -behind_m:
+                behind_m = -low_m
+            if high_m > ahead_m:
+                ahead_m = high_m
         # by position (a keyword call costs the frozen value's __init__ half as much again): s_m, v_mps, sigma_s_m,
         # sigma_v_mps, t_s, data_t_s, ahead_m, behind_m
-        est = Estimate(self._position_m(x, dt_s), float(x[V]), sqrt(max(var_s, 0.0)), sqrt(var_v), now_s,
+        est = Estimate(self._position_m(x, dt_s), float(x[V]), sigma_s_m, sqrt(var_v), now_s,
                        newest_t_s + offset_s, ahead_m, behind_m)
         self._estimate_memo = (state, now_s, offset_s, newest_t_s, est)
         return est

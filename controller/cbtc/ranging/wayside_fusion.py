@@ -29,6 +29,13 @@ class RangedEstimator:
     def localized(self):
         return self._inner.localized
 
+    @property
+    def confirmed(self):
+        return self._inner.confirmed
+
+    def declare_position(self, s_m, tol_m):
+        self._inner.declare_position(s_m, tol_m)
+
     def estimate(self, now_s):
         return self._inner.estimate(now_s)
 

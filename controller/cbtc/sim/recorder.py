@@ -1,9 +1,9 @@
 """The recorder of a simulated run: truth, reports and authority limits, and the figures computed from them.
 
-Truth decides: collisions and authority overruns come from the trains' true positions, counted when a train's own
-forward motion takes its head into the span or the protected zone of the train ahead; when the train ahead rolls back
-onto a train standing still, that is counted apart (`rolled_onto`): no authority can move a standing train out of
-the way. `granted_beyond_m` is how far
+Truth decides: collisions and authority overruns come from the trains' true positions. A collision is a head inside
+the span of the train ahead, whoever moved; `rolled_onto` counts those among them, and the entries into the protected
+zone, where the train ahead rolled back onto a train standing still. An overrun is a train's own forward motion
+taking its head into the protected zone of the train ahead. `granted_beyond_m` is how far
 the authority a board held reached past the true tail of the train ahead (or the end of the line); a train is
 stranded when it stood still over the run's last STRANDED_S with more than its following reach of true room ahead.
 """
@@ -55,7 +55,8 @@ class Recorder:
         self._reach_m = [following_reach_m(t.profile) for t in sim.trains]   # within it the train ahead limits one
         self.collisions = [0] * n
         self.overruns = [0] * n
-        self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or span
+        self.rolled_onto = [0] * n               # the train ahead rolled back into this standing train's zone or
+        #                                          onto it (the latter counted as collisions too)
         self._travelled_before = [0.0] * n
         self.granted_beyond_m = [-inf] * n   # worst (highest) granted room less true room while authorised
         self.room_m = [inf] * n             # true room ahead at the newest sample
@@ -151,9 +152,8 @@ class Recorder:
                 tail_s = tails[j]
                 inside = head_inside(layout, heads[i], tail_s, trains[j].profile.length_m)
                 if inside and not self._colliding[i] and not first:
-                    if moved:
-                        self.collisions[i] += 1
-                    else:
+                    self.collisions[i] += 1   # a collision whoever moved
+                    if not moved:
                         self.rolled_onto[i] += 1
                 self._colliding[i] = inside
                 gap_m = -layout.ahead_m(tail_s, heads[i]) if inside else layout.ahead_m(heads[i], tail_s)

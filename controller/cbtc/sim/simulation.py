@@ -18,6 +18,7 @@ from cbtc.zone.config import ScenarioConfig, train_key
 from cbtc.zone.factory import build_zone
 
 FIRST_CYCLE_S = 0.05   # the zone's first cycle: once the boards have had a loop or two to report
+DECLARED_TOL_M = 0.02  # how close to its declared start an operator puts a train's head: on a mark (declare_start)
 
 
 class Simulation:
@@ -49,6 +50,9 @@ class Simulation:
             self.trains.append(VirtualTrain(spec.train_id, train_key(config.seed, spec.train_id), layout, spec.profile,
                                             spec.s0_m, client, rng, offset_ms, obu_overrides=config.obu_overrides,
                                             ranging=self._ranging(index)))
+        if config.declare_start:
+            for spec in config.trains:   # from truth, as an operator would at the start of a run (declare_start)
+                self.zc.declare_position(spec.train_id, layout.wrap(spec.s0_m), DECLARED_TOL_M)
         if config.policy == "fixed_block":
             self._check_not_gridlocked()
         self.recorder = Recorder(self, keep_reports, keep_samples)

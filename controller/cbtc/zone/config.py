@@ -47,6 +47,9 @@ class ScenarioConfig:
     name: str = None                 # the scenario file's name, for titles
     source: str = None               # the scenario file or packaged name it was read from
     reference: dict = None           # figures another system gives on this case ({"source": text, figure: value})
+    declare_start: bool = True       # the zone is told where each train starts (from the simulation's truth), as an
+    #                                  operator declares at the start of a run: a placement that agrees with it is
+    #                                  confirmed; a zone restarted later has no declaration and waits for balises
 
 
 def train_key(seed: int, train_id: str) -> bytes:

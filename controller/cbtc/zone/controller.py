@@ -32,6 +32,7 @@ from cbtc.authority.rules import (
     within_horizon,
 )
 from cbtc.authority.values import Situation, TrainPicture
+from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import BoardClock, span_offsets_m
 from cbtc.firmware import obu
 from cbtc.protocol import wire
@@ -241,6 +242,18 @@ class ZoneController:
         """Subscribe to reports and announce the controller (retained)."""
         self.client.subscribe(wire.REPORT_FILTER, self.on_report)
         self.client.publish(wire.topic_zone_status(self.zone_id), b"online", retain=True)
+
+    def declare_position(self, train_id: str, s_m: float, tol_m: float) -> None:
+        """An operator declares that `train_id`'s head stands within `tol_m` of track position `s_m`: its first
+        placement is confirmed if it agrees (UkfEstimator.declare_position); ConfigError for a train not in the zone."""
+        state = self.trains.get(train_id)
+        if state is None:
+            raise ConfigError(f"declared position: train {train_id!r} is not in this zone; its trains: "
+                              f"{', '.join(self.trains)}")
+        if not (isfinite(s_m) and isfinite(tol_m) and tol_m >= 0.0):
+            raise ConfigError(f"declared position of {train_id}: {s_m} m within {tol_m} m is not a track position "
+                              f"and a tolerance >= 0")
+        state.estimator.declare_position(s_m, tol_m)
 
     def on_report(self, topic, payload):
         """Take one report. Whatever it holds, nothing escapes: a refusal is counted and logged at a bounded rate
@@ -497,6 +510,10 @@ class ZoneController:
                 # this train is held by the one ahead: ask that one for fast reports, for a while
                 self._want_fast(leader, safe_m, now_s)
             state.limited_by = auth.reason
+            if not state.estimator.confirmed and v_cap_mps > self.params.restricted_mps:
+                # placed on one reference: it runs to its next one at restricted speed
+                v_cap_mps = self.params.restricted_mps
+                state.limited_by = f"restricted speed, until confirmed by a balise ({auth.reason})"
         else:
             safe_m = None
             v_cap_mps = 0.0
