@@ -34,10 +34,17 @@ def test_the_plan_is_drawn_from_the_seeds_alone_and_a_longer_campaign_extends_a_
     assert {(spec.layout, spec.trains) for spec in long} == {(lay, n) for lay in campaign.LAYOUTS for n in range(2, 7)}
     for spec in long:
         assert all(faults.parse(text) for text in spec.faults)
-        assert len(spec.faults) == {"none": 0, "combined": 2, "packed_start": 0}.get(spec.fault_class, 1)
+        if spec.fault_class == "overlapping":
+            assert len(spec.faults) in (2, 3) and len({text.partition(":")[0] for text in spec.faults}) == \
+                len(spec.faults)
+            starts = [faults.parse(text).params["at_s"] for text in spec.faults if "at_s=" in text]
+            assert max(starts) - min(starts) <= campaign.OVERLAP_S, spec.faults   # their windows overlap
+        else:
+            assert len(spec.faults) == {"none": 0, "combined": 2, "packed_start": 0}.get(spec.fault_class, 1)
         for text in spec.faults:
             params = faults.parse(text).params
-            assert 10.0 <= params.get("at_s", 10.0) <= 30.0 and int(params.get("train", "T1")[1:]) <= spec.trains
+            assert 10.0 <= params.get("at_s", 10.0) <= 30.0 + campaign.OVERLAP_S
+            assert int(params.get("train", "T1")[1:]) <= spec.trains
     packed = [spec for spec in long if spec.fault_class == "packed_start"]
     assert {spec.policy for spec in packed} == {"moving_block", "fixed_block"}
     assert all(0.05 <= spec.start_gap_m <= 0.3 and f"--start-gap {spec.start_gap_m:g}" in spec.command()

@@ -34,7 +34,8 @@ def test_every_fault_has_a_schedule_and_its_parameters_are_checked():
     assert set(faults.FAULTS) == set(faults._SCHEDULE)
     assert str(faults.parse("link_loss:train=T2,loss=0.5")) == \
         "link_loss:at_s=20.0,burst_s=0.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
-    for text, says in (("nope", "unknown; known: broker_outage"), ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
+    for text, says in (("nope", "unknown; known: boot_moved, broker_outage"),
+                       ("stop_dead:speed=3", "PARAM=VALUE with PARAM"),
                        ("encoder_burst:counts=x", "a whole number"), ("reboot:at_s=nan", "finite"),
                        ("link_loss:loss=2", "share of messages"), ("rollback:v_mps=0", "rolling speed"),
                        ("rfid_misses:share=1", "probability in"), ("link_loss:direction=sideways", "direction"),

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from cbtc.bus.mock_broker import LinkProfile
+from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
@@ -404,3 +405,25 @@ def test_the_authority_on_board_ends_within_the_margin_for_a_wheel_that_begins_t
     state.report_t_s = 10.0
     zc._command(state, safe_m, None, 0.6, 0.5, 0.8, 10.0)
     assert state.eoa_mm - 5000 == reach_mm
+
+
+@pytest.mark.parametrize("layout,trains,seed,fault", [
+    # 0.25 m of multipath while the reader misses nine tags in ten: the wheel's reach from the last balise bounds it
+    ("itb_square", 3, 2, "ips_bias:train=T2,at_s=15,duration_s=10,offset_m=0.25,share=0.9"),
+    # a wheel worn 8 % long with the IPS off: the second balise in a row that disagrees places the train afresh
+    ("itb_square", 3, 1, "encoder_drift:train=T2,at_s=5,duration_s=40,factor=1.08"),
+    ("lego_oval", 4, 3, "encoder_drift:train=T1,at_s=5,duration_s=40,factor=0.92"),
+    # carried 0.6 m while its board boots: located afresh, on two references
+    ("itb_square", 3, 0, "boot_moved:train=T2,at_s=20,distance_m=0.6"),
+    ("lego_oval", 3, 17, "boot_moved:at_s=25.7,distance_m=-0.555,train=T1"),
+    # a tag knocked 10 cm along the track
+    ("itb_square", 3, 4, "tag_moved:train=T2,at_s=20,distance_m=0.1"),
+])
+def test_hazards_no_single_fault_named_before_end_in_no_violation(layout, trains, seed, fault):
+    summary = _run_faulted(layout, trains, seed, 60.0, fault).recorder.summary()
+    assert violations(summary) == [] and summary["rolled_onto"] == 0, summary
+
+
+def test_a_tag_cannot_be_moved_past_its_neighbour():
+    with pytest.raises(ConfigError, match="tag spacing"):
+        _run_faulted("itb_square", 2, 0, 25.0, "tag_moved:at_s=20,distance_m=0.5")

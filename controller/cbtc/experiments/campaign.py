@@ -5,7 +5,8 @@ fault's train, time and size are drawn from that seed within CAMPAIGN_RANGES (pa
 `rollback:distance_m=0.3`, are kept as given). So run k is the same whatever the number of runs: a longer campaign
 reuses a shorter one's results. Every run is a `cbtc sim` command (`RunSpec.command`), and `run_one` builds it as
 `cbtc sim` does, so the command printed for a violation reproduces it alone. `none` is the fault-free reference;
-`combined` injects two faults of different classes in one run; `packed_start` starts the trains one behind the other
+`combined` injects two faults of different classes in one run, each at its own time; `overlapping` two or three,
+each beginning within OVERLAP_S of the first; `packed_start` starts the trains one behind the other
 (two or more in one fixed block), under moving or fixed block.
 """
 
@@ -22,8 +23,9 @@ from dataclasses import asdict, dataclass
 from cbtc.errors import ConfigError
 from cbtc.sim import faults
 
-NONE, COMBINED, PACKED = "none", "combined", "packed_start"
-CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED, PACKED)
+NONE, COMBINED, OVERLAPPING, PACKED = "none", "combined", "overlapping", "packed_start"
+CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED, OVERLAPPING, PACKED)
+OVERLAP_S = 2.0   # overlapping: each fault begins within this long after the first
 PACKED_GAP_M = (0.05, 0.3)   # packed_start: the gap from a tail to the next head at the start
 LAYOUTS = ("itb_square", "lego_oval")
 FLEET_SIZES = (2, 3, 4, 5, 6)
@@ -60,6 +62,10 @@ CAMPAIGN_RANGES = {
     "rfid_misses": {"duration_s": (5.0, 20.0), "share": (0.3, 0.95)},
     "rfid_wrong_tag": {"duration_s": (5.0, 20.0), "share": (0.2, 0.9)},
     "rollback": {"distance_m": (0.05, 0.3), "v_mps": (0.02, 0.1)},
+    "ips_bias": {"duration_s": (5.0, 15.0), "offset_m": LogSigned((0.05, 0.5)), "share": (0.5, 1.0)},
+    "encoder_drift": {"duration_s": (20.0, 40.0), "factor": (0.9, 1.12)},
+    "boot_moved": {"distance_m": LogSigned((0.05, 1.0))},
+    "tag_moved": {"distance_m": LogSigned((0.005, 0.2))},
 }
 # per-class figures: counted over the runs (sums), or their worst, or their mean
 _SUMS = ("collisions", "authority_overruns", "rolled_onto", "emergency_trips", "encoder_trips", "stranded")
@@ -108,7 +114,7 @@ def parse_classes(texts) -> list:
     classes = []
     for text in texts:
         name = text.partition(":")[0]
-        if name in (NONE, COMBINED, PACKED):
+        if name in (NONE, COMBINED, OVERLAPPING, PACKED):
             if ":" in text:
                 raise ConfigError(f"fault class {text!r}: {name} takes no parameters")
         else:
@@ -168,10 +174,20 @@ def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids
     if cls == COMBINED:
         first, second = rng.sample(sorted(CAMPAIGN_RANGES), 2)
         return (_draw(first, rng, ids, duration_s), _draw(second, rng, ids, duration_s))
+    if cls == OVERLAPPING:
+        names = rng.sample(sorted(CAMPAIGN_RANGES), rng.choice((2, 3)))
+        start_s = _draw_at_s(rng, duration_s)
+        return tuple(_draw(name, rng, ids, duration_s, round(start_s + rng.uniform(0.0, OVERLAP_S), 1))
+                     for name in names)
     return (_draw(cls, rng, ids, duration_s),)
 
 
-def _draw(text, rng, ids, duration_s) -> str:
+def _draw_at_s(rng, duration_s) -> float:
+    low_s = min(10.0, 0.25 * duration_s)
+    return round(rng.uniform(low_s, max(low_s, min(30.0, duration_s - 30.0))), 1)
+
+
+def _draw(text, rng, ids, duration_s, at_s=None) -> str:
     name, _, given = text.partition(":")
     named = {item.partition("=")[0] for item in given.split(",") if item}
     fixed = {k: v for k, v in faults.parse(text).params.items() if k in named}
@@ -180,8 +196,7 @@ def _draw(text, rng, ids, duration_s) -> str:
     if "train" in defaults:
         params["train"] = ids[rng.randrange(len(ids))]
     if "at_s" in defaults:
-        low_s = min(10.0, 0.25 * duration_s)
-        params["at_s"] = round(rng.uniform(low_s, max(low_s, min(30.0, duration_s - 30.0))), 1)
+        params["at_s"] = _draw_at_s(rng, duration_s) if at_s is None else at_s
     for key, span in CAMPAIGN_RANGES[name].items():
         kind = type(defaults[key])
         if isinstance(span, LogSigned):

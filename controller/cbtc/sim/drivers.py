@@ -11,6 +11,7 @@ from math import cos, floor, pi, sin, sqrt
 
 import numpy as np
 
+from cbtc.errors import ConfigError
 from cbtc.railway import balise
 from cbtc.railway.ips_frame import track_to_ips
 
@@ -130,6 +131,20 @@ class SimRfid:
     def sense(self, s_m: float) -> None:
         """The virtual train tells the reader where it is (true head position, m)."""
         self._s_m = s_m
+
+    def move_tag(self, uid: str, distance_m: float) -> None:
+        """Fault injection: the tag `uid` lies `distance_m` further along the track than the layout (and its telegram)
+        says; ConfigError when that would take it past a neighbour (the tags stay in the layout's order)."""
+        i = self._tag_index[uid]
+        positions = self._tag_s_m
+        moved_m = positions[i] + distance_m
+        if self._layout.closed:
+            moved_m = float(self._layout.wrap(moved_m))
+        ordered = positions[:i] + [moved_m] + positions[i + 1:]
+        if ordered != sorted(ordered):
+            raise ConfigError(f"tag_moved: tag {uid} moved {distance_m:+.3f} m would pass its neighbour; give a "
+                              f"distance under the tag spacing")
+        positions[i] = moved_m
 
     def poll(self, now_ms: int):
         self.data = None

@@ -66,9 +66,22 @@ FAULTS = {
                      {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
     "rfid_misses": ("the train's RFID reader misses this share of tag passages for a while",
                     {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
+    "ips_bias": ("the train's IPS fixes carry a lasting error this far along the track for a while, and its reader "
+                 "misses this share of the tags meanwhile (multipath over a stretch of worn or sparse balises)",
+                 {"train": "", "at_s": 20.0, "duration_s": 10.0, "offset_m": 0.2, "share": 0.8}),
+    "encoder_drift": ("the train's wheel reads this many times the true travel for a while (worn, dirty), its IPS "
+                      "off meanwhile: the balises alone can tell", {"train": "", "at_s": 20.0, "duration_s": 30.0,
+                                                                    "factor": 1.05}),
+    "boot_moved": ("the train's board restarts and, before it reports again, the train is carried this far along the "
+                   "track (negative: back; as far as the trains either side leave room), as a user who lifts it and "
+                   "puts it down elsewhere", {"train": "", "at_s": 20.0, "distance_m": 0.3}),
+    "tag_moved": ("the first tag ahead of the train at at_s lies this far from where the layout (and its telegram) "
+                  "says (negative: back; knocked or laid by hand), for the rest of the run",
+                  {"train": "", "at_s": 20.0, "distance_m": 0.05}),
 }
 _DIRECTIONS = ("up", "down", "both")
-_SIGNED = {("odometer_jump", "distance_m")}   # parameters that may be negative
+_SIGNED = {("odometer_jump", "distance_m"), ("boot_moved", "distance_m"),
+           ("tag_moved", "distance_m")}   # parameters that may be negative
 _WORDS = {int: "a whole number", float: "a number", str: "text"}
 
 
@@ -254,7 +267,63 @@ def _controller_restart(sim, _train, p):
     sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.restart_zone)
 
 
+def _ips_bias(sim, train, p):
+    _ips_offset(sim, train, p)
+    _rfid_misses(sim, train, p)
+
+
+def _encoder_drift(sim, train, p):
+    _encoder_scale(sim, train, p)
+    _ips_blackout(sim, train, p)
+
+
+def _boot_moved(sim, train, p):
+    def reboot_and_carry():
+        train.reboot(sim.scheduler.now_s())
+        train.carry(_room_m(sim, train, p["distance_m"]))
+    sim.scheduler.call_at(p["at_s"], reboot_and_carry)
+
+
+def _room_m(sim, train, distance_m):
+    """`distance_m` cut to the room the trains either side leave, 10 cm clear of their tails ahead and of the track a
+    train behind may still run on (its head, or the end of the authority the zone gave it): a user puts a train
+    down on free track, not into another's way."""
+    layout = sim.config.layout
+    others = [t for t in sim.trains if t is not train]
+    if distance_m >= 0.0:
+        room = [layout.ahead_m(train.head_s, t.tail_s) for t in others] if layout.closed else \
+            [t.tail_s - train.head_s for t in others if t.tail_s >= train.head_s] + [layout.length_m - train.head_s]
+    else:
+        fronts = [_front_s(sim, t) for t in others]
+        room = [layout.ahead_m(front, train.tail_s) for front in fronts] if layout.closed else \
+            [train.tail_s - front for front in fronts if front <= train.tail_s] + [train.tail_s]
+    room_m = max(0.0, min(room + [abs(distance_m) + 0.1]) - 0.1)
+    return room_m if distance_m >= 0.0 else -room_m
+
+
+def _front_s(sim, train):
+    """The front of the track `train` may run on: the end of its authority as the zone set it, or its head."""
+    state = sim.zc.trains.get(train.train_id)
+    limit_s = None if state is None else state.limit_s
+    if limit_s is None:
+        return train.head_s
+    layout = sim.config.layout
+    return limit_s if layout.ahead_m(train.head_s, limit_s) < layout.length_m / 2 else train.head_s
+
+
+def _tag_moved(sim, train, p):
+    def move():
+        layout = sim.config.layout
+        ahead = min(layout.tags, key=lambda tag: layout.ahead_m(train.head_s, tag.s_m) if layout.closed
+                    else (tag.s_m - train.head_s if tag.s_m >= train.head_s else float("inf")))
+        for t in sim.trains:
+            t.rfid.move_tag(ahead.uid, p["distance_m"])
+    sim.scheduler.call_at(p["at_s"], move)
+
+
 _SCHEDULE = {"controller_restart": _controller_restart,
+             "ips_bias": _ips_bias, "encoder_drift": _encoder_drift, "boot_moved": _boot_moved,
+             "tag_moved": _tag_moved,
              "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
              "broker_outage": _broker_outage, "encoder_burst": _encoder_burst,
              "odometer_jump": _odometer_jump, "encoder_stuck": _encoder_stuck,

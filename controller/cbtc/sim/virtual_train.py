@@ -85,6 +85,12 @@ class VirtualTrain:
     def _on_connect(self, client):
         client.subscribe(wire.topic_command(self.train_id), self._on_command)
 
+    def carry(self, distance_m: float) -> None:
+        """Fault injection: the train is lifted and put down `distance_m` further along the track (negative: back),
+        standing; its wheel turns not at all on the way."""
+        self.s0_m += distance_m
+        self.v_mps = self.a_mps2 = 0.0
+
     def stop_dead(self) -> None:
         """Fault injection: the train stops at once where it is and stays (the brick-wall case)."""
         self.stopped_dead = True
