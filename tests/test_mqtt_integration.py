@@ -218,7 +218,7 @@ def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
     assert summary["trains"]["A"]["last_reject"] == "its reports fail authentication"
     with open(os.path.join(fleet.folder, "zone.err")) as fh:
         log = fh.read()
-    assert "train 'Z' is not in this zone" in log and "train A: wrong key" in log
+    assert "a board reports as train Z, which is not in this zone" in log and "train A: wrong key" in log
 
 
 def test_broker_killed_trains_stop_within_authority_then_resume(fleet):

@@ -66,6 +66,8 @@ CAMPAIGN_RANGES = {
     "encoder_drift": {"duration_s": (20.0, 40.0), "factor": (0.9, 1.12)},
     "boot_moved": {"distance_m": LogSigned((0.05, 1.0))},
     "tag_moved": {"distance_m": LogSigned((0.005, 0.2))},
+    "unknown_board": {"distance_m": (0.3, 4.0)},
+    "duplicate_board": {"distance_m": (0.3, 4.0)},
 }
 # per-class figures: counted over the runs (sums), or their worst, or their mean
 _SUMS = ("collisions", "authority_overruns", "rolled_onto", "emergency_trips", "encoder_trips", "stranded")

@@ -75,12 +75,19 @@ FAULTS = {
     "boot_moved": ("the train's board restarts and, before it reports again, the train is carried this far along the "
                    "track (negative: back; as far as the trains either side leave room), as a user who lifts it and "
                    "puts it down elsewhere", {"train": "", "at_s": 20.0, "distance_m": 0.3}),
+    "unknown_board": ("a board the zone was not configured for (its own id and key) is put on the track, standing, "
+                      "this far ahead of the train's head (in the largest free stretch ahead if it does not fit), "
+                      "and reports from then on", {"train": "", "at_s": 20.0, "distance_m": 1.0}),
+    "duplicate_board": ("a spare board flashed with the train's id and key is put on the track, standing, this far "
+                        "ahead of the train's head (as unknown_board), and reports from then on",
+                        {"train": "", "at_s": 20.0, "distance_m": 1.0}),
     "tag_moved": ("the first tag ahead of the train at at_s lies this far from where the layout (and its telegram) "
                   "says (negative: back; knocked or laid by hand), for the rest of the run",
                   {"train": "", "at_s": 20.0, "distance_m": 0.05}),
 }
 _DIRECTIONS = ("up", "down", "both")
-_SIGNED = {("odometer_jump", "distance_m"), ("boot_moved", "distance_m"),
+_SIGNED = {("odometer_jump", "distance_m"), ("boot_moved", "distance_m"), ("unknown_board", "distance_m"),
+           ("duplicate_board", "distance_m"),
            ("tag_moved", "distance_m")}   # parameters that may be negative
 _WORDS = {int: "a whole number", float: "a number", str: "text"}
 
@@ -302,13 +309,54 @@ def _room_m(sim, train, distance_m):
 
 
 def _front_s(sim, train):
-    """The front of the track `train` may run on: the end of its authority as the zone set it, or its head."""
-    state = sim.zc.trains.get(train.train_id)
-    limit_s = None if state is None else state.limit_s
-    if limit_s is None:
-        return train.head_s
+    """The front of the track `train` may run on: the end of the authority its board holds (at a wheel reading 10 %
+    short, and the margin beyond) or the zone set, or its head."""
     layout = sim.config.layout
-    return limit_s if layout.ahead_m(train.head_s, limit_s) < layout.length_m / 2 else train.head_s
+    reach_m = 0.0
+    state = sim.zc.trains.get(train.train_id)
+    if state is not None and state.limit_s is not None:
+        ahead_m = layout.ahead_m(train.head_s, state.limit_s)
+        reach_m = ahead_m if ahead_m < layout.length_m / 2 else 0.0
+    obu = train.obu
+    if obu.command_valid(train.board_ms(sim.scheduler.now_s())):
+        reach_m = max(reach_m, (obu.eoa_mm - obu.odo_mm) / 1000.0 / 0.9 + sim.config.params.margin_m)
+    return layout.wrap(train.head_s + reach_m)
+
+
+def _unknown_board(sim, train, p):
+    from cbtc.zone.config import train_key
+    sim.scheduler.call_at(p["at_s"], _put_stray, sim, train, p["distance_m"], "X" + train.train_id,
+                          train_key(sim.config.seed + 1, "X" + train.train_id))
+
+
+def _duplicate_board(sim, train, p):
+    sim.scheduler.call_at(p["at_s"], _put_stray, sim, train, p["distance_m"], train.train_id, train._key)
+
+
+def _put_stray(sim, train, distance_m, train_id, key):
+    """A standing board `distance_m` ahead of `train`'s head, where it fits clear of every train (0.2 m from their
+    tails and from the end of authority of the one behind); in the largest free stretch when it does not; nowhere
+    when no stretch has room."""
+    layout = sim.config.layout
+    profile = train.profile
+    clear_m = 0.2
+    need_m = profile.length_m + 2 * clear_m
+    stretches = []   # (start_s, length_m): from the front of a train's way to the tail of the train ahead of it
+    everyone = sim.trains + sim.strays
+    for t in everyone:
+        front_s = _front_s(sim, t)
+        ahead_m = [layout.ahead_m(front_s, o.tail_s) for o in everyone if o is not t] if layout.closed else \
+            [o.tail_s - front_s for o in everyone if o is not t and o.tail_s >= front_s] + [layout.length_m - front_s]
+        stretches.append((front_s, min(ahead_m) if ahead_m else layout.length_m - profile.length_m))
+    wanted_s = layout.wrap(train.head_s + distance_m)
+    for start_s, length_m in stretches:
+        into_m = layout.ahead_m(start_s, wanted_s)
+        if length_m >= need_m and profile.length_m + clear_m <= into_m <= length_m - clear_m:
+            sim.add_stray(train_id, key, wanted_s, profile)
+            return
+    start_s, length_m = max(stretches, key=lambda st: st[1])
+    if length_m >= need_m:
+        sim.add_stray(train_id, key, layout.wrap(start_s + 0.5 * (length_m + profile.length_m)), profile)
 
 
 def _tag_moved(sim, train, p):
@@ -323,7 +371,7 @@ def _tag_moved(sim, train, p):
 
 _SCHEDULE = {"controller_restart": _controller_restart,
              "ips_bias": _ips_bias, "encoder_drift": _encoder_drift, "boot_moved": _boot_moved,
-             "tag_moved": _tag_moved,
+             "tag_moved": _tag_moved, "unknown_board": _unknown_board, "duplicate_board": _duplicate_board,
              "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
              "broker_outage": _broker_outage, "encoder_burst": _encoder_burst,
              "odometer_jump": _odometer_jump, "encoder_stuck": _encoder_stuck,

@@ -20,4 +20,4 @@ cdef class Recorder:
     cpdef sample(self, now_s)
 
     @cython.locals(obu=OnboardUnit)
-    cpdef _granted(self, i, VirtualTrain train, now_s, heads, tails, ahead)
+    cpdef _granted(self, i, VirtualTrain train, now_s, heads, tails, ahead, everyone)

@@ -126,9 +126,12 @@ class Recorder:
         self._t_last_s = now_s
         if keep:
             self._t_s.append(now_s)
-        heads = [t.head_s for t in trains]
-        tails = [t.tail_s for t in trains]
-        spans = [(t.train_id, head, tail) for t, head, tail in zip(trains, heads, tails)]
+        strays = self.sim.strays
+        everyone = trains + strays if strays else trains   # truth: a board the zone does not know is a train too
+        heads = [t.head_s for t in everyone]
+        tails = [t.tail_s for t in everyone]
+        spans = [(t.train_id if k < len(trains) else f"stray {k}", head, tail)
+                 for k, (t, head, tail) in enumerate(zip(everyone, heads, tails))]
         ahead = train_ahead(layout, heads)
         protected = protected_all_m(self.sim.policy, layout, spans)
         lap_m = layout.length_m if layout.closed else None
@@ -138,7 +141,7 @@ class Recorder:
             moved = travelled_m > self._travelled_before[i] + 1e-4   # forward since the last sample
             self._travelled_before[i] = travelled_m
             any_moving = any_moving or train.v_mps > 0.0
-            self._granted(i, train, now_s, heads, tails, ahead)
+            self._granted(i, train, now_s, heads, tails, ahead, everyone)
             crossings = self._crossings[i]
             if lap_m is not None and travelled_m >= lap_m * (len(crossings) + 1):
                 crossings.append(now_s)
@@ -150,7 +153,7 @@ class Recorder:
             if i in ahead:
                 j = ahead[i]
                 tail_s = tails[j]
-                inside = head_inside(layout, heads[i], tail_s, trains[j].profile.length_m)
+                inside = head_inside(layout, heads[i], tail_s, everyone[j].profile.length_m)
                 if inside and not self._colliding[i] and not first:
                     self.collisions[i] += 1   # a collision whoever moved
                     if not moved:
@@ -202,13 +205,13 @@ class Recorder:
         if any_moving:
             self._moving_last_s = now_s
 
-    def _granted(self, i, train, now_s, heads, tails, ahead):
+    def _granted(self, i, train, now_s, heads, tails, ahead, everyone):
         """True room ahead of train i now, and how far the authority its board holds reaches beyond it."""
         layout = self.layout
         if i in ahead:
             tail_s = tails[ahead[i]]
             room_m = layout.ahead_m(heads[i], tail_s)
-            if head_inside(layout, heads[i], tail_s, self.sim.trains[ahead[i]].profile.length_m):
+            if head_inside(layout, heads[i], tail_s, everyone[ahead[i]].profile.length_m):
                 room_m = -layout.ahead_m(tail_s, heads[i])
         elif layout.closed:
             room_m = layout.length_m - train.profile.length_m

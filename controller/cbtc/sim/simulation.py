@@ -41,6 +41,7 @@ class Simulation:
         self.zc = build_zone(config, keys, self.zc_client, self.scheduler.now_s)
         self.policy = self.zc.policy
         self.trains = []
+        self.strays = []   # boards on the track the zone was not configured for (faults unknown_board, duplicate_board)
         for index, spec in enumerate(config.trains):
             rng = np.random.default_rng([config.seed, index])
             client = self.broker.connect(f"train-{spec.train_id}",
@@ -68,6 +69,23 @@ class Simulation:
         self.report_sink = None   # callable(train_id, report, recv_s): every report the zone accepts (a recording)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
         faults.inject(self, config.faults)
+
+    def add_stray(self, train_id, key, s0_m, profile):
+        """A board put on the track at `s0_m` standing, reporting as `train_id` with `key`, which the zone was not
+        configured for (or a second one under a configured id): truth counts it like any train, the zone sees only
+        its reports."""
+        from cbtc.sim.virtual_train import VirtualTrain
+        index = len(self.trains) + len(self.strays)
+        rng = np.random.default_rng([self.config.seed, index, 11])
+        client = self.broker.connect(f"stray-{len(self.strays)}-{train_id}", up=self.config.link,
+                                     down=self.config.link)
+        stray = VirtualTrain(train_id, key, self.config.layout, profile, s0_m, client, rng,
+                             int(rng.integers(0, 10_000_000)), obu_overrides=self.config.obu_overrides)
+        stray.boots = 1 << 16 + len(self.strays)   # its own boot ids, as another board draws them
+        stray.obu = stray._boot()
+        self.strays.append(stray)
+        self.scheduler.call_every(self.config.loop_s, self._ticker(stray), start_s=self.scheduler.now_s() + 0.0005)
+        return stray
 
     def crash_zone(self):
         """The zone controller's process dies: its connection is cut (its will says offline), no cycle runs."""

@@ -4,5 +4,5 @@ cdef class BootTracker:
     cdef dict __dict__
     cdef object __weakref__
     cdef public object boot, last_seq, last_recv_s, answered, left, _leaving
-    cdef public object _leaving_seq
+    cdef public object _leaving_seq, twins, _baselines
 

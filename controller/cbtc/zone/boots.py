@@ -16,6 +16,10 @@ from cbtc.protocol import wire
 wrap_diff = wire.wrap_diff   # named once: a module's attribute is looked up at every use
 
 LEFT_BOOTS = 16          # boots remembered as left: their recorded reports are refused
+TWIN_AFTER_MS = 1000     # a boot other than the current one whose reports run this much board time past the first
+#                          (or newest taken) of it, while the current boot answers: a second board, alive
+TWIN_ALIVE_S = 2.0       # ... the current boot having reported within this long
+_BASELINES = 32          # boots whose first (or newest taken) report is remembered for that
 UPTIME_SLACK_S = 0.5     # a new boot's uptime may exceed the silence by this, plus 2 % of it (clock rates differ)
 
 
@@ -28,6 +32,36 @@ class BootTracker:
         self.left = ()           # boots this train has left, newest last
         self._leaving = None     # the boot a restart came from, until the new boot has answered
         self._leaving_seq = None  # and its last accepted seq
+        self.twins = set()       # boots shown to be a second board reporting under this train's id
+        self._baselines = {}     # boot -> (seq, t_ms): its newest report taken, or the first seen of a boot not taken
+
+    def second_board(self, report, recv_s):
+        """True when `report` (authenticated) comes from a second board under this train's id: a boot other than the
+        current one, reporting TWIN_AFTER_MS of its own board time past its newest report taken (or the first seen
+        of it), with later sequence numbers, while the current boot answers this controller and reported within
+        TWIN_ALIVE_S: a replay repeats what was sent, a board that restarted stops, so two boards are alive. Once
+        shown, every report of that boot is the second board's."""
+        boot = report["boot"]
+        if boot in self.twins:
+            return True
+        if self.boot is None or boot == self.boot:
+            return False
+        base = self._baselines.get(boot)
+        if base is None:
+            self._remember(boot, report)
+            return False
+        alive = self.answered and self.last_recv_s is not None and recv_s - self.last_recv_s <= TWIN_ALIVE_S
+        if alive and wrap_diff(report["seq"], base[0]) > 0 and wrap_diff(report["t_ms"], base[1]) >= TWIN_AFTER_MS:
+            self.twins.add(boot)
+            return True
+        return False
+
+    def _remember(self, boot, report):
+        baselines = self._baselines
+        baselines.pop(boot, None)
+        baselines[boot] = (report["seq"], report["t_ms"])
+        if len(baselines) > _BASELINES:
+            del baselines[next(iter(baselines))]
 
     def refusal(self, report, recv_s):
         """Why `report` (received at `recv_s`) must be dropped, or "" if it moves the picture forward."""
@@ -54,6 +88,7 @@ class BootTracker:
             self._leaving, self._leaving_seq = self.boot, self.last_seq
         self.boot = report["boot"]
         self.last_seq = report["seq"]
+        self._remember(self.boot, report)
         self.last_recv_s = recv_s
         self.answered = report["csid"] == session_id
         if self.answered and self._leaving is not None:

@@ -23,7 +23,8 @@ cdef class ZoneController:
     cdef public object layout, client, now_fn, policy, params, cycle_s
     cdef public object event_driven, zone_id, _rng, session_id, _estimator_factory, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
-    cdef public object use_measured_gap, on_command, report_sink, fast_slots
+    cdef public object use_measured_gap, on_command, report_sink, fast_slots, obstacles, _balises
+    cdef public object _stranger_length_m, _stranger_v_mps
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)

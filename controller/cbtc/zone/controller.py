@@ -35,11 +35,14 @@ from cbtc.authority.values import Situation, TrainPicture
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import BoardClock, span_offsets_m
 from cbtc.firmware import obu
-from cbtc.protocol import wire
+from cbtc.protocol import unsealed, wire
+from cbtc.railway.balise import BaliseReader
+from cbtc.railway.ips_frame import ips_to_track
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone import plausibility
-from cbtc.zone.boots import BootTracker
+from cbtc.zone.boots import TWIN_ALIVE_S, BootTracker
+from cbtc.zone.obstacles import Obstacle, room_m
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
 
 log = logging.getLogger("cbtc.zone")
@@ -52,6 +55,9 @@ _STOP_KEPT_MM = obu.STOP_MADE_MM   # near standstill, a station's stop target mo
 #                                   it further than the board holds short of it
 _STANDING_MMPS = 30   # slower than this, braked or not counting: standing, for the dwell (the board's creep speed)
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
+_SEEN_IPS_M = 0.45   # an obstacle's IPS fix puts its head within this either way: the IPS's lasting bias (0.3 m,
+#                      UkfParams.ips_bias_m) and 3 sigma of its noise
+_SEEN_TAG_M = 0.05   # ... a balise read of it: the reader's range and a tag's placement
 
 
 @dataclass
@@ -221,6 +227,11 @@ class ZoneController:
         self._unheard = len(self.trains)
         self.unknown_reports = 0
         self.invalid_reports = 0
+        self.obstacles = {}           # name -> Obstacle: on the track, and no train of the zone (cbtc.zone.obstacles)
+        self._balises = BaliseReader(layout)   # where an obstacle's tag reads put it
+        profiles = [st.setup.profile for st in self.trains.values()]
+        self._stranger_length_m = max(p.length_m for p in profiles)   # an unknown train is as long as the longest,
+        self._stranger_v_mps = 1.5 * max(p.v_noload_mps for p in profiles)   # and no faster than half again theirs
         self.refusals = RefusalLog(log)
         self.key_source = "its keys"   # where the zone's keys come from, named when a board's differ (a file)
         self.cycles = 0
@@ -268,13 +279,98 @@ class ZoneController:
         state = self.trains.get(train_id)
         if state is None:
             self.unknown_reports += 1
-            self.refusals.note(UNKNOWN, "report", f"train {train_id!r} is not in this zone: configure it or remove "
-                               f"the board", recv_s)
+            self._stranger(train_id, topic, payload, recv_s)
             return
         try:
             self._take_report(state, payload, recv_s)
         except Exception as exc:   # one train's bad data never stops the zone
             self._train_failed(state, exc, "handling a report", payload, recv_s)
+
+    def _stranger(self, train_id, topic, payload, recv_s):
+        """A report under an id this zone does not know: a board on the track it cannot command. Its reports cannot
+        be authenticated, but an obstacle only takes authority away: it is kept where they put it (Obstacle), every
+        train behind it held short of it, and all of them while they put it nowhere."""
+        try:
+            report = unsealed.peek_report(topic, payload)
+        except wire.WireError as exc:
+            self.refusals.note(UNKNOWN, "report", f"train {train_id!r} is not in this zone ({exc.reason})", recv_s)
+            return
+        name = f"unknown board {train_id}"
+        obstacle = self.obstacles.get(name)
+        if obstacle is None:
+            obstacle = self.obstacles[name] = Obstacle(name, self._stranger_length_m, self._stranger_v_mps)
+            log.error("a board reports as train %s, which is not in this zone: it is an obstacle where its reports put "
+                      "it (every train behind it is held short of it, and every train while they place it nowhere); "
+                      "configure it (a train of the zone) or take it off the track and restart the zone", train_id)
+        self._sight(obstacle, report, recv_s)
+
+    def _sight(self, obstacle, report, recv_s):
+        """Where `report` puts `obstacle`'s head: its IPS fix, its balise reads."""
+        obstacle.hear(recv_s)
+        fix = report["ips"]
+        if fix is not None:
+            x_m, y_m = ips_to_track(fix[1] / 1000.0, fix[2] / 1000.0, self.layout.ips)
+            s_m = float(self.layout.project(x_m, y_m))
+            obstacle.see(recv_s, s_m - _SEEN_IPS_M, s_m + _SEEN_IPS_M)
+        for entry in report["tags"]:
+            s_m = self._balises.position_m(entry[0], entry[4] if len(entry) > 4 else None)
+            if s_m is not None:
+                obstacle.see(recv_s, s_m - _SEEN_TAG_M, s_m + _SEEN_TAG_M)
+
+    def _other_boot(self, state, report, recv_s, proven):
+        """An authenticated report of a boot under `state`'s id that is not the train's current one and moves nothing
+        forward: a second board, or a replay. Either way something may stand where it says: an obstacle, which lapses
+        when that boot falls silent for BootTracker's TWIN_ALIVE_S, until it is `proven` a second board
+        (BootTracker.second_board): then the train is held and the obstacle stays."""
+        name = self._other_boot_name(state, report["boot"])
+        obstacle = self.obstacles.get(name)
+        if obstacle is None:
+            profile = state.setup.profile
+            obstacle = self.obstacles[name] = Obstacle(name, profile.length_m, 1.5 * profile.v_noload_mps,
+                                                       lapse_s=TWIN_ALIVE_S)
+        self._sight(obstacle, report, recv_s)
+        if proven and obstacle.lapse_s is not None:
+            obstacle.lapse_s = None
+            log.error("two boards report as train %s (boots %d and %d): the train is held, and the board of boot %d "
+                      "is an obstacle where its reports put it; take one of them off the track (or flash it with its "
+                      "own id and key) and restart the zone", state.train_id, state.boots.boot, report["boot"],
+                      report["boot"])
+
+    @staticmethod
+    def _other_boot_name(state, boot):
+        return f"second board of {state.train_id} (boot {boot})"
+
+    def _obstacle_nowhere(self, state):
+        """The name of an obstacle not yet seen anywhere (it may be on any track: every train is held, as while a
+        train of the zone is not located), or None; lapsed obstacles are dropped."""
+        for obstacle in list(self.obstacles.values()):
+            if obstacle.lapsed(self.now_fn()):
+                del self.obstacles[obstacle.name]
+            elif not obstacle.seen and obstacle.owner != state.train_id:
+                return obstacle.name
+        return None
+
+    def _clear_of_obstacles(self, state, auth, now_s):
+        """`auth` cut short of every obstacle seen ahead of `state`'s train (its margin and k sigma of its own estimate
+        off)."""
+        if not self.obstacles:
+            return auth
+        est = state.newest_estimate()
+        layout = self.layout
+        front_s = layout.wrap(est.s_m + est.ahead_m + self.params.k_sigma * est.sigma_s_m)
+        for obstacle in list(self.obstacles.values()):
+            if obstacle.lapsed(now_s):
+                del self.obstacles[obstacle.name]
+                continue
+            if obstacle.owner == state.train_id:
+                continue
+            span = obstacle.span(layout, now_s)
+            if span is None:   # not seen yet: the caller holds every train
+                continue
+            distance_m = room_m(layout, front_s, span) - self.params.margin_m
+            if distance_m < auth.distance_m:
+                auth = auth.cut_to(distance_m, obstacle.name)
+        return auth
 
     def _refuse(self, state, klass, reason, recv_s, advice=""):
         state.reports_rejected += 1
@@ -297,13 +393,21 @@ class ZoneController:
                 if " names version " in exc.reason else ""
             self._refuse(state, "invalid report", exc.reason, recv_s, advice=advice)
             return
+        other_boot = state.boots.boot is not None and report["boot"] != state.boots.boot
+        if other_boot and state.boots.second_board(report, recv_s):
+            self._other_boot(state, report, recv_s, proven=True)
+            return
         previous = state.report if state.report is not None and state.report["boot"] == report["boot"] else None
         reason = state.boots.refusal(report, recv_s)
         if not reason and previous is not None:
             reason = plausibility.time_refusal(report, previous, recv_s, state.report_recv_s)
         if reason:
             self._refuse(state, "report", reason, recv_s)
+            if other_boot:
+                self._other_boot(state, report, recv_s, proven=False)
             return
+        if other_boot:   # the boot the train goes on with is the train itself, no obstacle
+            self.obstacles.pop(self._other_boot_name(state, report["boot"]), None)
         if state.boots.accept(report, recv_s, self.session_id):
             # a new boot: the board restarted; its clock, odometer and sequence began again
             log.warning("train %s restarted (boot %d): locating it afresh", state.train_id, report["boot"])
@@ -497,12 +601,13 @@ class ZoneController:
 
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
-        if all_located:
+        blind = self._obstacle_nowhere(state) if self.obstacles else None
+        if all_located and not state.boots.twins and blind is None:
             sit = self._situation(state, leader, now_s)
             if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
                 block_i, code = self.policy.code(sit)
                 sit = replace(sit, received_code=self.policy.codes.transmit(block_i, code))
-            auth = within_horizon(self.policy.authority(sit), state.horizon_m)
+            auth = self._clear_of_obstacles(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
             stop_m = self._station_stop(state, now_s)
@@ -518,7 +623,8 @@ class ZoneController:
             safe_m = None
             v_cap_mps = 0.0
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
-            state.limited_by = self._hold_reason()
+            state.limited_by = f"held: two boards report as {state.train_id}" if state.boots.twins \
+                else f"held: {blind}, position unknown" if blind is not None else self._hold_reason()
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
 
