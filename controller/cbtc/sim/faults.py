@@ -345,9 +345,13 @@ def _put_stray(sim, train, distance_m, train_id, key):
     everyone = sim.trains + sim.strays
     for t in everyone:
         front_s = _front_s(sim, t)
-        ahead_m = [layout.ahead_m(front_s, o.tail_s) for o in everyone if o is not t] if layout.closed else \
-            [o.tail_s - front_s for o in everyone if o is not t and o.tail_s >= front_s] + [layout.length_m - front_s]
-        stretches.append((front_s, min(ahead_m) if ahead_m else layout.length_m - profile.length_m))
+        if layout.closed:   # measured from its head: a tail between the head and the front leaves no stretch
+            front_m = layout.ahead_m(t.head_s, front_s)
+            ahead_m = [layout.ahead_m(t.head_s, o.tail_s) - front_m for o in everyone if o is not t]
+        else:
+            ahead_m = [o.tail_s - front_s for o in everyone if o is not t and o.tail_s >= t.head_s] + \
+                [layout.length_m - front_s]
+        stretches.append((front_s, max(0.0, min(ahead_m)) if ahead_m else layout.length_m - profile.length_m))
     wanted_s = layout.wrap(train.head_s + distance_m)
     for start_s, length_m in stretches:
         into_m = layout.ahead_m(start_s, wanted_s)
