@@ -117,3 +117,14 @@ def test_a_restart_during_multipath_ends_in_no_collision(seed):
         "controller_restart:at_s=20,duration_s=1", "ips_offset:train=T3,at_s=18,duration_s=15,offset_m=0.3"))
     summary = Simulation(config).run().summary()
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0, summary
+
+
+def test_a_layout_without_tags_is_named_in_a_warning(caplog):
+    import logging
+
+    from cbtc.railway.layout_dict import layout_from_dict
+    layout = layout_from_dict({"name": "bare", "closed": False, "segments": [{"straight": {"length_m": 4.0}}]})
+    with caplog.at_level(logging.WARNING, logger="cbtc.zone"):
+        Simulation(sim_config(layout, 2, 0, 5.0))
+    assert any("layout bare has no RFID tags" in r.getMessage() and "restricted speed" in r.getMessage()
+               for r in caplog.records)

@@ -225,6 +225,10 @@ class ZoneController:
             self.trains[setup.train_id] = state
         self._unanswered = set(self.trains.values())
         self._unheard = len(self.trains)
+        if not layout.tags:
+            log.warning("layout %s has no RFID tags: no balise can confirm where a train is, so every train placed by "
+                        "the IPS alone runs at restricted speed for good; lay tags between the rails and list them in "
+                        "the layout (docs/layouts.md)", layout.name)
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.obstacles = {}           # name -> Obstacle: on the track, and no train of the zone (cbtc.zone.obstacles)
