@@ -601,6 +601,11 @@ class UkfEstimator:
                 new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
                 new.tag_offset = new.doubt = new.pending = new.tag_story = None
                 new.reach = self._reach_at_tag(f, *event.data)
+            elif state.pending is not None and not self._within_doubt(f, state.doubt, *event.data):
+                # a balise beyond the pending placement's own bound: nothing places the train now; it is located
+                # afresh (and every train held meanwhile), not re-placed at what may be another tag misread
+                self._filter_holds = None
+                return None
             elif state.pending is not None or self._story_repeats(f, state.reach, state.tag_story,
                                                                         *event.data):
                 # the placement rests on one reference, and a balise says it is wrong; or a second balise in a row
@@ -766,6 +771,16 @@ class UkfEstimator:
     def _reach_around(self, s_m, half_m, d_m):
         wrap = self.layout.wrap
         return wrap(s_m - half_m), wrap(s_m + half_m), d_m, d_m
+
+    def _within_doubt(self, f, doubt, tag_s_m, d_m, in_field, span_s):
+        """True when a balise read puts the head within `doubt` (the pending placement's bound, as offsets from the
+        filter's position), widened by 3 sigma of the filter and of the read and the tag's bias."""
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
+        here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
+        story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
+        low_m, high_m = doubt if doubt is not None else (0.0, 0.0)
+        spread_m = 3.0 * (sqrt(max(f.cov[S][S], 0.0)) + sqrt(var_m2)) + self.params.tag_bias_m
+        return low_m - spread_m <= story_m <= high_m + spread_m
 
     def _story_repeats(self, f, reach, story_m, tag_s_m, d_m, in_field, span_s):
         """True when a balise read the filter gates tells the story the one before told (`story_m`, the newest gated
