@@ -20,14 +20,13 @@ except ImportError:  # CPython
 
 # D4: encoder output (open collector, on-board pull-up); a strapping pin, so it must be high at boot
 _ENCODER_A = const(2)
-                              # (no pin left for a second channel: direction comes from the motor command)
+_ENCODER_B = const(16)        # D0: the encoder's second channel, read at A's edges (GPIO16 has no IRQ, none needed)
 _MOTOR_IN1 = const(5)         # D1  H-bridge IN1 (forward PWM)
 _MOTOR_IN2 = const(4)         # D2  H-bridge IN2 (reverse PWM)
 _MOTOR_PWM_HZ = const(1000)   # PWM frequency (Hz)
 _RFID_SPI = const(1)          # HSPI: SCK GPIO14 (D5), MISO GPIO12 (D6), MOSI GPIO13 (D7)
 _RFID_SPI_HZ = const(1000000)
 _RFID_CS = const(15)          # D8  chip select (the board's pull-down keeps GPIO15 low at boot, as it must be)
-_RFID_RST = const(16)         # D0  reset (output only; GPIO16 has no IRQ, which is fine here)
 _IPS_UART = const(0)          # UART0 RX = GPIO3 (RX pin), after the REPL is detached
 _IPS_BAUD = const(115200)     # set the hedgehog's UART speed to this in the Marvelmind dashboard
 _MAINT_PIN = const(0)         # D3  FLASH button: held low as the firmware starts = maintenance, stay in the REPL
@@ -47,12 +46,14 @@ def make_drivers():
     gc.collect()
     from drivers.encoder import Encoder
 
-    encoder = Encoder(machine.Pin(_ENCODER_A, machine.Pin.IN, machine.Pin.PULL_UP))
+    # two channels: the board sees itself roll back or run backwards (roll-away and reverse-movement protection)
+    encoder = Encoder(machine.Pin(_ENCODER_A, machine.Pin.IN, machine.Pin.PULL_UP),
+                      machine.Pin(_ENCODER_B, machine.Pin.IN), quadrature=False)
     gc.collect()
     from drivers.mfrc522 import Mfrc522
 
     rfid = Mfrc522(machine.SPI(_RFID_SPI, baudrate=_RFID_SPI_HZ),   # mode 0: polarity 0, phase 0 (the defaults)
-                   machine.Pin(_RFID_CS, machine.Pin.OUT, value=1), machine.Pin(_RFID_RST, machine.Pin.OUT, value=0))
+                   machine.Pin(_RFID_CS, machine.Pin.OUT, value=1), None)   # its RST tied to 3.3 V
     gc.collect()
     from drivers.ips import IpsReceiver
 

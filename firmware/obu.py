@@ -64,6 +64,9 @@ _ENC_HOLD_MS = const(2000)     # a failed encoder holds the train braked this lo
 _SAT_MS = const(300)     # drive at its ceiling this long with the train slower than the reference: encoder failed
 _SLOW_MMPS = const(50)   # what "slower" means there (mm/s)
 _SPAN_MAX_MS = const(65535)   # the longest time a tag read's span may state (wire_zc.SPAN_MAX_MS)
+_BACK_MM = const(20)     # a two-channel encoder seeing the train this far behind the furthest it reached: it rolls
+                         # back (undriven: held by driving forward) or runs backwards (driven: braked for good) (mm)
+_HOLD_DONE_MM = const(5)  # a hold drives the train back to within this of the furthest it reached, then brakes (mm)
 
 
 class OnboardUnit:
@@ -87,6 +90,11 @@ class OnboardUnit:
     _sat_ms = 0              # how long the drive has been at its ceiling with the train slower than asked (ms)
     _undriven = False        # some pass since the last report braked or drove at zero duty
     _left_sids = ()          # controller sessions this unit has left (newest last)
+    _peak_mm = 0             # furthest odometer reached: trains run forward only, so travel back is a roll or a fault
+    holding = False          # roll-away protection: driving the train forward to where it stood
+    holds = 0                # times a roll back was held
+    _held = False            # some pass since the last report held a roll back
+    reverse = False          # the train ran backwards while driven (a motor wired reversed): braked until a reboot
 
     def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
@@ -265,14 +273,17 @@ class OnboardUnit:
         try:
             count = self.encoder.count()
             age_us = self.encoder.age_us   # 0 from an encoder that does not time its edges
-            if count < last and not getattr(self.encoder, "signed", False):
+            signed = getattr(self.encoder, "signed", False)
+            if count < last and not signed:
                 # one channel counts every edge up: a count that goes back is a glitch, and the odometer is lost
                 self._encoder_failed(now_ms, "count went back")
             odo_mm = count * 1000 // self.cfg["counts_per_m"]
             if odo_mm != self.odo_mm:
                 self._last_move_ms = now_ms
-                if self.duty_pct == 0 and self.v_ref_mmps <= 0:   # braked to a standstill (or tripped) since the
-                    self._rolled = True                            # last pass: not travel the board drove
+                if signed:
+                    self._back_check(odo_mm)
+                elif self.duty_pct == 0 and self.v_ref_mmps <= 0:   # braked to a standstill (or tripped) since the
+                    self._rolled = True                              # last pass: not travel the board drove
             self.odo_mm = odo_mm
         except Exception as exc:
             self._sensor_failed("encoder", exc)
@@ -358,6 +369,25 @@ class OnboardUnit:
         if abs(v_mmps) * 2 > cfg["v_noload_mmps"] * 3:
             self._encoder_failed(now_ms, "%d mm/s, faster than the motor drives" % v_mmps)
 
+    def _back_check(self, odo_mm):
+        """Roll-away and reverse-movement protection (two channels: the odometer is signed)."""
+        if self.reverse:
+            return
+        if odo_mm > self._peak_mm:
+            self._peak_mm = odo_mm
+        back_mm = self._peak_mm - odo_mm
+        if self.holding:
+            if back_mm <= _HOLD_DONE_MM:
+                self.holding = False
+            elif back_mm > 3 * _BACK_MM:   # driven forward, it still goes back: not a roll the motor holds
+                self.reverse = True
+        elif back_mm > _BACK_MM:
+            if self.duty_pct > 0:
+                self.reverse = True
+            else:
+                self.holding = True
+                self.holds += 1
+
     def odo_scale(self):
         """Odometer mm per true mm, a low bound from the newest command (1.0 before any): the curves below work in
         odometer units, so their decelerations (true m/s^2) are scaled by it. A wheel that reads long then brakes no
@@ -418,6 +448,19 @@ class OnboardUnit:
                 self._brake()
                 return
             self.enc_fail_ms = None
+        if self.reverse:   # it ran backwards when driven: driving it again may run it backwards again
+            self.holding = False
+            self.mode = "trip"
+            self._brake()
+            return
+        if self.holding:
+            # rolling back undriven (a slope the brake does not hold): driven forward, harder the further it went, to
+            # where it stood and no further (_back_check ends the hold); never past ground it had reached
+            self._held = True
+            self.v_ref_mmps = 0.0
+            self.duty_pct = min(60, 10 + self._peak_mm - self.odo_mm)
+            self.motor.drive(self.duty_pct)
+            return
         if self.command_valid(now_ms):
             cmd = self.cmd
             # speeds and rates are true mm/s and mm/s^2; the loop runs on the odometer, which reads the command's
@@ -540,6 +583,11 @@ class OnboardUnit:
         if self._rolled:
             faults.append("roll")
             self._rolled = False
+        if self._held:
+            faults.append("hold")
+            self._held = self.holding
+        if self.reverse:
+            faults.append("reverse")
         # the mean duty (floored) of the passes since the last report (this one at least): the motor answers the mean
         # (it is linear in duty), where one pass's duty of a loop that alternates would tell of a speed it never had
         acc = self._duty_acc

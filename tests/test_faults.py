@@ -2,6 +2,7 @@
 the controller; `cbtc sim --fault` runs them."""
 
 import logging
+from dataclasses import replace
 
 import pytest
 
@@ -22,9 +23,12 @@ def quiet():
     logging.disable(logging.NOTSET)
 
 
-def run(text, until_s):
+def run(text, until_s, encoder_channels=2):
     config = queue_scenario(load_layout("itb_square"), 2, seed=0, duration_s=until_s)
     config.faults = (faults.parse(text),)
+    if encoder_channels != 2:
+        config = replace(config, trains=[replace(t, profile=t.profile.with_changes(encoder_channels=encoder_channels))
+                                         for t in config.trains])
     sim = Simulation(config)
     sim.scheduler.run_until(AT_S - 0.01)
     return sim, sim.trains[0], sim.zc.trains["T1"]
@@ -204,8 +208,8 @@ def test_rfid_wrong_tag_reads_tags_that_are_elsewhere():
 
 
 def test_rollback_rolls_the_standing_train_back_and_its_encoder_counts_on():
-    """It rolls only while standing undriven: a drive forward holds it."""
-    sim, train, _state = run(f"rollback:at_s={AT_S},distance_m=0.2,v_mps=0.1", 9.0)
+    """It rolls only while standing undriven: a drive forward holds it; a one-channel encoder counts it up."""
+    sim, train, _state = run(f"rollback:at_s={AT_S},distance_m=0.2,v_mps=0.1", 9.0, encoder_channels=1)
     sim.scheduler.run_until(AT_S + 0.01)
     while not train.rolling_back:                         # it waits for the train to stand (at a station)
         sim.scheduler.run_until(sim.scheduler.now_s() + 0.05)

@@ -1,6 +1,7 @@
 """Safety with faults injected, on the mock broker under the virtual clock: every loss makes trains stop, never run."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -8,6 +9,7 @@ import pytest
 from cbtc.bus.mock_broker import LinkProfile
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
+from cbtc.protocol import wire
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim.recorder import violations
@@ -254,19 +256,64 @@ def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed,
     assert violations(summary) == [] and min(t["distance_m"] for t in summary["trains"]) > 1.0, summary
 
 
+def _channels(config, channels):
+    """`config` with every train's encoder given `channels` channels."""
+    return replace(config, trains=[replace(t, profile=t.profile.with_changes(encoder_channels=channels))
+                                   for t in config.trains])
+
+
 @pytest.mark.parametrize("layout,trains,seed,fault,rolled_onto", [
     # it rolled on at full drive and its board counted the roll as travel: the follower ran into it
     ("lego_oval", 5, 44, "rollback:at_s=13.3,distance_m=0.159,train=T4,v_mps=0.03", 0),
     # it rolls 0.255 m onto the train standing behind it: no authority moves a standing train out of the way, and a
-    # collision is a collision whoever moved; only roll-away protection on the leader's board could prevent it
+    # collision is a collision whoever moved; a one-channel board cannot tell a roll back from a push forward
     ("lego_oval", 5, 27, "rollback:at_s=15.8,distance_m=0.255,train=T5,v_mps=0.083", 1),
 ])
 def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_a_collision(
         layout, trains, seed, fault, rolled_onto):
-    sim = _run_faulted(layout, trains, seed, 30.0, fault)
+    """With a one-channel encoder (no roll-away protection on the board)."""
+    sim = Simulation(_channels(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)), 1))
+    sim.run()
     summary = sim.recorder.summary()
     assert summary["authority_overruns"] == 0 and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary
     assert violations(summary) == (["collision"] if rolled_onto else []), summary
+
+
+@pytest.mark.parametrize("fault", ["rollback:at_s=15.8,distance_m=0.255,train=T5,v_mps=0.083",
+                                   "rollback:at_s=11.6,distance_m=0.296,train=T4,v_mps=0.042"])
+def test_roll_away_protection_holds_a_rolling_train_within_centimetres(fault):
+    """A two-channel board that sees itself roll back 2 cm undriven drives forward to where it stood: the roll that
+    ran onto the train standing behind (one channel, above) stays within a few centimetres, and nothing collides."""
+    train_id = fault.split("train=")[1].split(",")[0]
+    sim = Simulation(sim_config("lego_oval", 5 if "T5" in fault else 6, 27 if "T5" in fault else 573, 30.0,
+                                fault_texts=(fault,)))
+    train = next(t for t in sim.trains if t.train_id == train_id)
+    peak_m, worst_back_m = [0.0], [0.0]
+
+    def watch(_now_s):
+        peak_m[0] = max(peak_m[0], train.travelled_m)
+        worst_back_m[0] = max(worst_back_m[0], peak_m[0] - train.travelled_m)
+
+    sim.scheduler.call_every(0.005, watch, start_s=0.013)
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [] and summary["rolled_onto"] == 0, summary
+    assert train.obu.holds >= 1 and not train.obu.reverse and worst_back_m[0] < 0.04, worst_back_m
+    assert "hold" in wire.FAULTS and train.rollback_left_m > 0.0   # the slope still pulls: the board holds it
+
+
+@pytest.mark.parametrize("distance_m", [0.1, 0.3, 0.5])
+def test_a_train_that_runs_backwards_when_driven_is_braked_and_held(distance_m):
+    """A motor wired reversed: driven forward, the train runs backwards. A two-channel board brakes it within a few
+    centimetres and keeps it braked; the zone holds it, naming why, and the others run on."""
+    sim = _run_faulted("itb_square", 3, 1, 30.0, f"reverse_run:train=T2,at_s=15,distance_m={distance_m}")
+    summary = sim.recorder.summary()
+    t2 = sim.trains[1]
+    assert violations(summary) == [], summary
+    assert t2.obu.reverse and t2.obu.mode == "trip" and "reverse" in sim.zc.trains["T2"].report["flt"]
+    assert sim.zc.trains["T2"].limited_by.startswith("held: it ran backwards when driven")
+    assert distance_m - t2._reverse_m < 0.06   # braked within 6 cm of backward travel
+    assert min(t["distance_m"] for t in summary["trains"] if t["train"] != "T2") > 3.0, summary
 
 
 def test_a_slip_learnt_as_the_scale_does_not_strand_the_train():

@@ -1,10 +1,12 @@
 """Wheel encoder on pin interrupts: a slotted wheel / hall sensor (one channel) or a quadrature pair.
 
-Encoder(pin_a, pin_b=None) takes ready `machine.Pin` inputs. One channel: every edge counts +1 (monotonic: the
-direction comes from the motor command, not from the sensor). Two channels: x4 quadrature decoding, signed (A leading B
-counts up). The interrupt handlers touch only preallocated ints: read the level, reject a repeated level (a bounce or a
-missed edge seen twice), count, note the time of the edge, return. They are hard interrupts (the ESP8266 has them), so
-the time is the edge's own; they read the levels themselves rather than trust the trigger.
+Encoder(pin_a, pin_b=None, quadrature=True) takes ready `machine.Pin` inputs. One channel: every edge counts +1
+(monotonic: the direction comes from the motor command, not from the sensor). Two channels: x4 quadrature decoding,
+signed (A leading B counts up). Two channels with `quadrature=False`: only A interrupts and B is read at each of A's
+edges (x2 decoding, signed, the same counts per metre as one channel): B needs no interrupt, so it can sit on a pin
+that has none (GPIO16). The interrupt handlers touch only preallocated ints: read the level, reject a repeated level
+(a bounce or a missed edge seen twice), count, note the time of the edge, return. They are hard interrupts (the
+ESP8266 has them), so the time is the edge's own; they read the levels themselves rather than trust the trigger.
 
 Each edge's time makes the speed exact to the edge (the M/T method in the OnboardUnit): `count()` also sets `age_us`,
 how long before the read the newest counted edge came.
@@ -30,7 +32,7 @@ _QUAD = (0, -1, 1, 0,
 
 
 class Encoder:
-    def __init__(self, pin_a, pin_b=None):
+    def __init__(self, pin_a, pin_b=None, quadrature=True):
         self.pin_a = pin_a
         self.pin_b = pin_b
         self.signed = pin_b is not None   # two channels count down on the way back; one channel only ever counts up
@@ -41,6 +43,8 @@ class Encoder:
         trigger = getattr(pin_a, "IRQ_RISING", _RISING) | getattr(pin_a, "IRQ_FALLING", _FALLING)
         if pin_b is None:
             pin_a.irq(trigger=trigger, handler=self._edge, hard=True)
+        elif not quadrature:
+            pin_a.irq(trigger=trigger, handler=self._dir_edge, hard=True)
         else:
             self._state = (self._level_a << 1) | pin_b.value()
             pin_a.irq(trigger=trigger, handler=self._quad_edge, hard=True)
@@ -51,6 +55,13 @@ class Encoder:
         if level != self._level_a:
             self._level_a = level
             self._count += 1
+            self._edge_us = ticks_us()
+
+    def _dir_edge(self, _):
+        level = self.pin_a.value()
+        if level != self._level_a:   # A leading B (00 10 11 01): A and B differ just after each of A's edges
+            self._level_a = level
+            self._count += 1 if level != self.pin_b.value() else -1
             self._edge_us = ticks_us()
 
     def _quad_edge(self, _):

@@ -1,9 +1,10 @@
 """NXP MFRC522 13.56 MHz reader on SPI: reads the UID of ISO 14443A tags laid between the rails, and a balise's data.
 
 Mfrc522(spi, cs, rst) takes a ready `machine.SPI` (mode 0, up to 10 MHz, MSB first) and ready output pins for chip
-select and reset. Register access: one SPI transaction per register, address byte (reg << 1) & 0x7E, with 0x80 set to
-read. A reader that does not answer (version register not one of the known chips, or the bus raising OSError) leaves
-`present` False; then `poll` returns None and nothing ever raises.
+select and reset (rst None: the chip's NRSTPD is tied high and its soft reset is the reset). Register access: one SPI
+transaction per register, address byte (reg << 1) & 0x7E, with 0x80 set to read. A reader that does not answer
+(version register not one of the known chips, or the bus raising OSError) leaves `present` False; then `poll` returns
+None and nothing ever raises.
 
 A read runs REQA, then anticollision and SELECT at cascade level 1 and, for a 7-byte UID (NTAG, Ultralight), level
 2, and for a 10-byte one level 3; a uid is read whole or not at all. When the tag is a Type 2 tag (SAK 0x00:
@@ -96,7 +97,8 @@ class Mfrc522:
         self._rx = bytearray(2)
         try:
             cs.value(1)
-            rst.value(1)
+            if rst is not None:   # None: NRSTPD tied to 3.3 V, the soft reset below is the reset
+                rst.value(1)
             self.version = self._read(_VERSION)
             if self.version not in (0x91, 0x92, 0x88, 0x12):   # MFRC522 v1.0, v2.0, FM17522 clone, another clone
                 return

@@ -49,6 +49,23 @@ def check_encoder_quadrature():
     assert enc.count() == 8
 
 
+def check_encoder_direction_pin():
+    a = machine.Pin(4, machine.Pin.IN)
+    b = machine.Pin(16, machine.Pin.IN)
+    enc = Encoder(a, b, quadrature=False)
+    assert b.handler is None                             # B is only read, at A's edges
+    forward = ((a, 1), (b, 1), (a, 0), (b, 0))
+    for _ in range(3):
+        for pin, level in forward:
+            set_level(pin, level)
+    assert enc.count() == 6 and enc.signed
+    for pin, level in ((b, 1), (a, 1), (b, 0), (a, 0)):  # backwards one cycle
+        set_level(pin, level)
+    assert enc.count() == 4
+    enc._dir_edge(a)                                     # a late IRQ on an unchanged level is rejected
+    assert enc.count() == 4
+
+
 try:
     from time import ticks_add
     TICKS_PERIOD = ticks_add(0, -1) + 1      # 2^30 on the ESP8266; wider on a 64-bit port

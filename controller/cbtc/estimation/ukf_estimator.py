@@ -390,7 +390,9 @@ class UkfEstimator:
                     v_mps = min(v_mps, self._top_mps)
         # the duty the train was driven at throughout the interval: none when the board braked or drove at zero duty
         # at some pass since its last report (`undriven`), whatever it drives at now
-        driven = report.get("mode") == "run" and "undriven" not in report.get("flt", ())
+        # (`hold`: the board drove it only to hold a roll back, not at the speed loop's duty)
+        flt = report.get("flt", ())
+        driven = report.get("mode") == "run" and "undriven" not in flt and "hold" not in flt
         duty_pct = report.get("duty", 0) if driven else 0
         step = self._speed_step(t_s, v_mps, duty_pct) if not rolled_m else None
         if rolled_m or step is not None:

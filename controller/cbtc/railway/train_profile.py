@@ -25,6 +25,8 @@ class TrainProfile:
     beta_e_mps2: float = 1.40         # emergency deceleration: motor short-circuit brake
     friction_mps2: float = 0.08       # rolling resistance at speed (deceleration when coasting)
     counts_per_m: int = 1000          # encoder counts per metre of travel
+    encoder_channels: int = 2         # 2: signed counts (the board's pin plan); 1: every edge counts up
+    tail_beacon: int = 1              # 1: an IPS beacon on the last car, its fixes read by the zone; 0: none fitted
     encoder_scale_error: float = 0.02 # wheel-diameter error: encoder distance = true * (1 + error)
     encoder_slip_sigma: float = 0.01  # random slip, fraction of distance travelled (1-sigma)
     ips_sigma_m: float = 0.05         # IPS noise per axis (1-sigma); see docs/fusion.md for the choice
@@ -50,6 +52,10 @@ class TrainProfile:
         for name in ("ips_dropout", "ips_outlier", "rfid_miss", "rfid_bit_error"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 raise ConfigError(f"train profile: {name} is a probability in [0, 1), got {getattr(self, name)}")
+        if self.tail_beacon not in (0, 1):
+            raise ConfigError(f"train profile: tail_beacon is 1 (fitted) or 0, got {self.tail_beacon}")
+        if self.encoder_channels not in (1, 2):
+            raise ConfigError(f"train profile: encoder_channels is 1 or 2, got {self.encoder_channels}")
         if self.v_max_mps > self.v_noload_mps:
             raise ConfigError("train profile: v_max_mps must not exceed v_noload_mps (the motor cannot reach it)")
         if self.beta_e_mps2 <= self.beta_s_mps2:

@@ -18,31 +18,38 @@ from cbtc.railway.ips_frame import track_to_ips
 
 class SimEncoder:
     """Edge counts of a slotted wheel: true distance scaled by the wheel error, plus slip, floored to counts; and the
-    time of the newest edge, as the board's interrupt notes it (`age_us` after `count()`: us since that edge)."""
+    time of the newest edge, as the board's interrupt notes it (`age_us` after `count()`: us since that edge). Two
+    channels (`profile.encoder_channels` 2, the board's pin plan) count travel backwards down (`signed`); one channel
+    counts it up, as forward travel."""
 
     def __init__(self, profile, rng):
         self._profile = profile
         self._rng = rng
+        self.signed = profile.encoder_channels == 2
         self.distance_m = 0.0  # what the wheel has rolled (with errors), not what the train travelled
         self.scale_fault = 1.0  # fault injection: counts run this many times too fast (1.0: healthy)
         self._since_edge_s = 0.0
         self.age_us = 0
 
     def advance(self, ds_m: float, dt_s: float = 0.0, v0_mps: float = 0.0, a_mps2: float = 0.0) -> None:
-        """The train travelled `ds_m` (m, >= 0) in truth over `dt_s` seconds, starting at `v0_mps` under constant
-        `a_mps2` (what the physics step did): the newest edge's time comes from that motion."""
+        """The train travelled `ds_m` (m; negative: backwards) in truth over `dt_s` seconds, starting at `v0_mps`
+        under constant `a_mps2` (what the physics step did): the newest edge's time comes from that motion."""
         self._since_edge_s += dt_s
-        if ds_m <= 0.0:
+        if ds_m == 0.0:
             return
         p = self._profile
         slip = self._rng.normal(0.0, p.encoder_slip_sigma) if p.encoder_slip_sigma > 0 else 0.0
         factor = (1.0 + p.encoder_scale_error + slip) * self.scale_fault
-        before = self.distance_m
-        self.distance_m += ds_m * factor
-        newest = floor(self.distance_m * p.counts_per_m)
+        # counts run down (two channels, backwards) as up on the mirrored distance: one edge timing for both
+        way = -1.0 if ds_m < 0.0 and self.signed else 1.0
+        before = self.distance_m * way
+        after = before + abs(ds_m) * factor
+        self.distance_m = after * way
+        newest = floor(after * p.counts_per_m)
         if dt_s <= 0.0 or newest <= floor(before * p.counts_per_m):
             return
         x_m = (newest / p.counts_per_m - before) / factor     # true travel into the step at the newest edge
+        v0_mps = abs(v0_mps)
         if abs(a_mps2) < 1e-9:
             tau_s = x_m / v0_mps if v0_mps > 0 else dt_s
         else:

@@ -40,9 +40,18 @@ FAULTS = {
     "rfid_wrong_tag": ("this share of the train's RFID reads return another tag of the layout (a misplaced or "
                        "swapped tag) for a while", {"train": "", "at_s": 20.0, "duration_s": 5.0, "share": 0.5}),
     "rollback": ("the train, standing undriven after at_s, rolls back at this speed until it has rolled this far "
-                 "(brakes not holding on a slope; a drive forward holds it); its one-channel encoder counts the roll "
+                 "(brakes not holding on a slope; a drive forward holds it); a one-channel encoder counts the roll "
                  "as forward travel",
                  {"train": "", "at_s": 20.0, "distance_m": 0.2, "v_mps": 0.05}),
+    "reverse_run": ("from at_s the train's motor drives it backwards (its wires swapped) until it has run this far "
+                    "backwards, then forward again; a one-channel encoder counts the run as forward travel",
+                    {"train": "", "at_s": 20.0, "distance_m": 0.3}),
+    "length_wrong": ("the train is truly this long, where its configuration (and so the zone) says otherwise, from "
+                     "the start (as far as the room behind its tail leaves, less 0.15 m)",
+                     {"train": "", "length_m": 0.5}),
+    "car_dropped": ("the train's last car, this long (at most the train's length less 0.1 m), comes off at at_s and "
+                    "stays standing where it is; the train runs on without it, and the beacon on the last car (where "
+                    "fitted) stays with the car", {"train": "", "at_s": 20.0, "length_m": 0.1}),
     "encoder_burst": ("the train's encoder counts this many spurious counts at once",
                       {"train": "", "at_s": 20.0, "counts": 200}),
     "odometer_jump": ("the train's odometer jumps once by this far (negative: back), a glitch of its count: a board "
@@ -112,7 +121,7 @@ def parse(text: str) -> Fault:
         if kind is float and not math.isfinite(params[key]):
             raise ConfigError(f"fault {name}: {key}={value!r} must be a finite number")
     for key in ("at_s", "duration_s", "counts", "factor", "latency_s", "jitter_s", "burst_s", "delay_s",
-                "distance_m"):
+                "distance_m", "length_m"):
         if key in params and params[key] < 0 and (name, key) not in _SIGNED:
             raise ConfigError(f"fault {name}: {key} must be >= 0, got {params[key]}")
     if "loss" in params and not 0.0 <= params["loss"] <= 1.0:
@@ -120,6 +129,8 @@ def parse(text: str) -> Fault:
     if "share" in params and not 0.0 <= params["share"] < 1.0:
         raise ConfigError(f"fault {name}: share is a probability in [0, 1) (rfid_absent, ips_blackout: all), got "
                           f"{params['share']}")
+    if name == "length_wrong" and not 0.05 <= params["length_m"] <= 5.0:
+        raise ConfigError(f"fault {name}: length_m is a train's length in [0.05, 5] m, got {params['length_m']}")
     if "v_mps" in params and not 0.0 < params["v_mps"] <= 1.0:
         raise ConfigError(f"fault {name}: v_mps is a rolling speed in (0, 1] m/s, got {params['v_mps']}")
     if params.get("direction", "both") not in _DIRECTIONS:
@@ -187,6 +198,31 @@ def _rfid_wrong_tag(sim, train, p):
 
 def _rollback(sim, train, p):
     sim.scheduler.call_at(p["at_s"], train.roll_back, p["distance_m"], p["v_mps"])
+
+
+def _length_wrong(sim, train, p):
+    layout = sim.config.layout
+    others = [t for t in sim.trains if t is not train]
+    room = [layout.ahead_m(t.head_s, train.tail_s) for t in others] if layout.closed else \
+        [train.tail_s - t.head_s for t in others if t.head_s <= train.tail_s] + [train.tail_s]
+    train.length_m = max(0.05, min([p["length_m"]] + [train.length_m + r - 0.15 for r in room]))
+
+
+def _car_dropped(sim, train, p):
+    def drop():
+        car_m = min(p["length_m"], train.length_m - 0.1)
+        if car_m < 0.01:
+            return
+        car_head_s = sim.config.layout.wrap(train.tail_s + car_m)
+        train.length_m -= car_m
+        car = sim.add_stray("C" + train.train_id, train._key, car_head_s, train.profile.with_changes(length_m=car_m))
+        car.frozen = car.stopped_dead = True   # a car has no board: it neither moves nor reports
+        train.tail_car = car
+    sim.scheduler.call_at(p["at_s"], drop)
+
+
+def _reverse_run(sim, train, p):
+    sim.scheduler.call_at(p["at_s"], train.run_reversed, p["distance_m"])
 
 
 def _encoder_burst(sim, train, p):
@@ -382,4 +418,5 @@ _SCHEDULE = {"controller_restart": _controller_restart,
              "encoder_scale": _encoder_scale, "ips_offset": _ips_offset, "ips_blackout": _ips_blackout,
              "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses,
              "link_reorder": _link_reorder, "link_duplicate": _link_duplicate, "rfid_wrong_tag": _rfid_wrong_tag,
-             "rollback": _rollback}
+             "rollback": _rollback, "reverse_run": _reverse_run, "length_wrong": _length_wrong,
+             "car_dropped": _car_dropped}

@@ -18,7 +18,7 @@ def true_gap_m(layout, follower, others):
         if other is follower:
             continue
         tail = other.tail_s
-        if layout.ahead_m(tail, head) <= other.profile.length_m and (layout.closed or head >= tail):
+        if layout.ahead_m(tail, head) <= other.length_m and (layout.closed or head >= tail):
             gap = -layout.ahead_m(tail, head)
         else:
             gap = layout.ahead_m(head, tail)

@@ -153,7 +153,7 @@ class Recorder:
             if i in ahead:
                 j = ahead[i]
                 tail_s = tails[j]
-                inside = head_inside(layout, heads[i], tail_s, everyone[j].profile.length_m)
+                inside = head_inside(layout, heads[i], tail_s, everyone[j].length_m)
                 if inside and not self._colliding[i] and not first:
                     self.collisions[i] += 1   # a collision whoever moved
                     if not moved:
@@ -211,10 +211,10 @@ class Recorder:
         if i in ahead:
             tail_s = tails[ahead[i]]
             room_m = layout.ahead_m(heads[i], tail_s)
-            if head_inside(layout, heads[i], tail_s, everyone[ahead[i]].profile.length_m):
+            if head_inside(layout, heads[i], tail_s, everyone[ahead[i]].length_m):
                 room_m = -layout.ahead_m(tail_s, heads[i])
         elif layout.closed:
-            room_m = layout.length_m - train.profile.length_m
+            room_m = layout.length_m - train.length_m
         else:
             room_m = layout.length_m - heads[i]
         self.room_m[i] = room_m

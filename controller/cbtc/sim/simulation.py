@@ -13,6 +13,7 @@ from cbtc.protocol import fast_wire, wire
 from cbtc.scheduler import VirtualScheduler
 from cbtc.sim import faults, progress
 from cbtc.sim.recorder import Recorder
+from cbtc.sim.tail_beacons import TailBeacons
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import ScenarioConfig, train_key
 from cbtc.zone.factory import build_zone
@@ -68,6 +69,9 @@ class Simulation:
         self.zone_restarts = 0
         self.report_sink = None   # callable(train_id, report, recv_s): every report the zone accepts (a recording)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
+        self.tail_beacons = TailBeacons(self)
+        if self.tail_beacons:
+            self.scheduler.call_every(config.loop_s, self.tail_beacons.tick, start_s=0.0107)
         faults.inject(self, config.faults)
 
     def add_stray(self, train_id, key, s0_m, profile):

@@ -100,7 +100,7 @@ class TruthMonitor:
             return
         for i, j in train_ahead(self.layout, [t.head_s for t in trains]).items():
             ahead = trains[j]
-            inside = head_inside(self.layout, trains[i].head_s, ahead.tail_s, ahead.profile.length_m)
+            inside = head_inside(self.layout, trains[i].head_s, ahead.tail_s, ahead.length_m)
             if inside and not self._inside[i]:
                 self.collisions[i] += 1
             self._inside[i] = inside

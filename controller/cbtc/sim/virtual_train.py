@@ -22,6 +22,8 @@ class VirtualTrain:
         self.profile = profile
         self.client = client
         self.s0_m = float(s0_m)
+        self.length_m = profile.length_m   # in truth (faults length_wrong, car_dropped change it; the zone's stays)
+        self.tail_car = None       # a car come off the train's tail (fault car_dropped): the tail beacon went with it
         self.travelled_m = 0.0
         self.v_mps = 0.0
         self.a_mps2 = 0.0
@@ -45,6 +47,8 @@ class VirtualTrain:
         self.stopped_dead = False  # fault injection: the train stopped without braking (derailment, obstacle)
         self._rollback_m = 0.0     # fault injection: still to roll back while standing undriven, at _rollback_mps
         self._rollback_mps = 0.0
+        self._reverse_m = 0.0      # fault injection: still to run backwards under the motor's drive (wired reversed)
+        self._back_v_mps = 0.0     # speed backwards (m/s, >= 0; the forward speed is v_mps, one of the two is 0)
         client.subscribe(wire.topic_command(train_id), self._on_command)
         client.on_connect = self._on_connect
 
@@ -55,7 +59,12 @@ class VirtualTrain:
 
     @property
     def tail_s(self) -> float:
-        return self.layout.wrap(self.s0_m + self.travelled_m - self.profile.length_m)
+        return self.layout.wrap(self.s0_m + self.travelled_m - self.length_m)
+
+    @property
+    def beacon_s(self) -> float:
+        """True position of the beacon on the train's last car: its tail, or a dropped car's."""
+        return self.tail_s if self.tail_car is None else self.tail_car.tail_s
 
     def _boot(self):
         """A fresh OnboardUnit with the next boot id: drawn from the key and the boot count, so a seeded run repeats
@@ -100,7 +109,7 @@ class VirtualTrain:
     def roll_back(self, distance_m: float, v_mps: float) -> None:
         """Fault injection: while the train stands undriven, it rolls back at `v_mps` until it has rolled `distance_m`
         (a slope its brakes do not hold; a drive forward holds it, and the roll goes on when it stands undriven
-        again); the one-channel encoder counts the roll as forward travel."""
+        again); a one-channel encoder counts the roll as forward travel."""
         self._rollback_m, self._rollback_mps = distance_m, v_mps
 
     @property
@@ -116,14 +125,54 @@ class VirtualTrain:
         ds_m = min(self._rollback_m, self._rollback_mps * dt_s)
         self.travelled_m -= ds_m
         self._rollback_m -= ds_m
-        self.encoder.advance(ds_m, dt_s, self._rollback_mps, 0.0)
+        self.encoder.advance(-ds_m, dt_s, self._rollback_mps, 0.0)
+
+    def run_reversed(self, distance_m: float) -> None:
+        """Fault injection: from now the motor drives the train backwards (its wires swapped) until it has run
+        `distance_m` backwards; then it drives forward again. A one-channel encoder counts either way up."""
+        self._reverse_m = distance_m
+
+    @property
+    def reversing(self) -> bool:
+        return self._reverse_m > 1e-9 or self._back_v_mps > 0.0
+
+    def _reverse_step(self, dt_s: float) -> None:
+        """Physics on a signed speed while the motor is reversed (or the train still runs backwards after it)."""
+        p, motor = self.profile, self.motor
+        u = self.v_mps - self._back_v_mps
+        way = 1.0 if u > 0 else -1.0 if u < 0 else 0.0
+        if motor.mode != "drive" or motor.duty_pct <= 0:
+            a = -way * (p.beta_e_mps2 if motor.mode == "brake" else p.friction_mps2)
+        else:
+            target = motor.duty_pct / 100.0 * p.v_noload_mps * (-1.0 if self._reverse_m > 1e-9 else 1.0)
+            drive = (target - u) / p.motor_tau_s
+            if way == 0.0 and abs(drive) <= p.friction_mps2:
+                a = 0.0
+            else:
+                a = drive - (way or (1.0 if drive > 0 else -1.0)) * p.friction_mps2
+                a = max(-p.beta_e_mps2, min(p.beta_e_mps2, a))
+                if a * (way or a) > 0:   # speeding up (either way): the traction limit
+                    a = max(-p.accel_max_mps2, min(p.accel_max_mps2, a))
+        u_next = u + a * dt_s
+        if way != 0.0 and u_next * way < 0.0 and (motor.mode != "drive" or motor.duty_pct <= 0):
+            ds_m = 0.5 * u * (u / -a)   # brakes (or coasts) to a stand inside the step
+            u_next = 0.0
+        else:
+            ds_m = 0.5 * (u + u_next) * dt_s
+        self.travelled_m += ds_m
+        if ds_m < 0.0:
+            self._reverse_m = max(0.0, self._reverse_m + ds_m)
+        self.encoder.advance(ds_m, dt_s, abs(u), a if ds_m >= 0.0 else -a)   # along the way it went
+        self.v_mps, self._back_v_mps, self.a_mps2 = max(0.0, u_next), max(0.0, -u_next), a
 
     def tick(self, now_s: float) -> None:
         """Advance physics to `now_s` under the motor command, then run one OnboardUnit loop."""
         dt_s = 0.0 if self._last_s is None else now_s - self._last_s
         self._last_s = now_s
         self._now_s = now_s
-        if dt_s > 0 and self.rolling_back:
+        if dt_s > 0 and self.reversing and not self.stopped_dead:
+            self._reverse_step(dt_s)
+        elif dt_s > 0 and self.rolling_back:
             self._roll(dt_s)
         elif dt_s > 0 and not self.stopped_dead:
             s_before, v_before = self.travelled_m, self.v_mps

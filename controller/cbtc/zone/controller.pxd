@@ -13,7 +13,7 @@ cdef class TrainState:
     cdef public object stop_overruns, restarts, answered_s, fast_until_s, fast_need_m, leader_data_t_s
     cdef public object sigma_m, authority, mode, rng_gap, gap_alarm, gap_alarms
     cdef public object deaf_since_s, encoder_failed, encoder_failures, odometer_jumps, measurements_dropped, failures
-    cdef public object failures_said, reports_taken, reach_m, horizon_m, doubt_span, _memo
+    cdef public object failures_said, reports_taken, reach_m, horizon_m, tail, doubt_span, _memo
 
 cdef class ZoneController:
     cdef dict __dict__

@@ -44,6 +44,7 @@ from cbtc.zone import plausibility
 from cbtc.zone.boots import TWIN_ALIVE_S, BootTracker
 from cbtc.zone.obstacles import Obstacle, room_m
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
+from cbtc.zone.tails import TailWatch
 
 log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
@@ -121,6 +122,7 @@ class TrainState:
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
         self.reach_m = None          # its following reach and horizon (cbtc.authority.rules), set by the zone
         self.horizon_m = None
+        self.tail = None             # its tail beacon's TailWatch, from the beacon's first fix (None: none fitted)
         self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
         # what the zone asks of this train per report (its estimate, picture, scale bounds): they change only with a
@@ -146,8 +148,11 @@ class TrainState:
         picture = memo.get("picture")
         if picture is None:
             est = self.newest_estimate()
+            behind_m = est.behind_m   # a tail beacon that finds the train longer than configured reaches further back
+            if self.tail is not None:
+                behind_m += self.tail.extra_behind_m(est.s_m, self.report_t_s)
             picture = memo["picture"] = TrainPicture(self.train_id, est.s_m, est.sigma_s_m, est.v_mps, self.report_t_s,
-                                                     self.setup.profile, est.ahead_m, est.behind_m)
+                                                     self.setup.profile, est.ahead_m, behind_m)
         return picture
 
     def odometer_per_m_low(self, k_sigma):
@@ -164,6 +169,7 @@ class TrainState:
         self.relocate(estimator)
         self.clock = BoardClock()
         self.report = None
+        self.tail = None
         self.restarts += 1
 
     def relocate(self, estimator):
@@ -428,6 +434,7 @@ class ZoneController:
             state.measurements_dropped += dropped
             self.refusals.note(state.train_id, "measurement", f"{dropped} IPS fix, tag or range stamped outside "
                                f"its report (t_ms {report['t_ms']})", recv_s)
+        self._note_motion_faults(state, report, previous, recv_s)
         faults = ENCODER_FAULTS.intersection(report["flt"])
         jump_mm = 0 if previous is None else plausibility.odometer_jump_mm(report, previous,
                                                                            state.setup.profile.v_noload_mps)
@@ -606,7 +613,8 @@ class ZoneController:
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
         blind = self._obstacle_nowhere(state) if self.obstacles else None
-        if all_located and not state.boots.twins and blind is None:
+        backwards = state.report is not None and "reverse" in state.report["flt"]
+        if all_located and not state.boots.twins and blind is None and not backwards:
             sit = self._situation(state, leader, now_s)
             if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
                 block_i, code = self.policy.code(sit)
@@ -628,9 +636,46 @@ class ZoneController:
             v_cap_mps = 0.0
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
             state.limited_by = f"held: two boards report as {state.train_id}" if state.boots.twins \
-                else f"held: {blind}, position unknown" if blind is not None else self._hold_reason()
+                else f"held: {blind}, position unknown" if blind is not None \
+                else "held: it ran backwards when driven (motor wired reversed?): fix it, then reboot the board" \
+                if backwards else self._hold_reason()
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
+
+    def on_tail_fix(self, train_id: str, t_s: float, x_mm: int, y_mm: int) -> None:
+        """A fix of the beacon on the last car of train `train_id`, IPS frame mm, taken at controller time `t_s` (an
+        IPS modem reports every beacon's fixes): it checks the train's configured length (cbtc.zone.tails)."""
+        state = self.trains.get(train_id)
+        if state is None:
+            self.refusals.note(UNKNOWN, "tail fix", f"a tail beacon fix for train {train_id!r}, not in this zone",
+                               t_s)
+            return
+        if not state.estimator.localized or state.clock.offset_s is None:
+            return
+        est = state.estimator.estimate(t_s)
+        if est is None:
+            return
+        x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
+        if state.tail is None:
+            state.tail = TailWatch(state.setup.profile.length_m, self.layout.loop_length_m)
+        tail = state.tail
+        was_longer = tail.longer
+        tail.see(t_s, self.layout.project(x_m, y_m), est.s_m)
+        if tail.extra_behind_m(est.s_m, t_s) and not was_longer:
+            self.refusals.note(train_id, "tail further back", f"its tail beacon puts its tail further back than its "
+                               f"configured length ({state.setup.profile.length_m:.2f} m)", t_s,
+                               "the train behind keeps back from there; check the train's length in the "
+                               "configuration, and whether a car has come off")
+
+    def _note_motion_faults(self, state, report, previous, recv_s):
+        """Log, once each time it begins, a board's roll-away hold and its reverse-movement trip."""
+        before = () if previous is None else previous["flt"]
+        if "hold" in report["flt"] and "hold" not in before:
+            self.refusals.note(state.train_id, "rolled back", "standing undriven, it rolled back over 2 cm (a slope "
+                               "its brake does not hold?): its board drives it back to where it stood", recv_s)
+        if "reverse" in report["flt"] and "reverse" not in before:
+            self.refusals.note(state.train_id, "ran backwards", "driven forward, it ran backwards over 2 cm: its "
+                               "board brakes it for good; check the motor's wires, then reboot the board", recv_s)
 
     def _hold_reason(self):
         """Why every train is held (no authority): the first train not located, or not answering this zone."""
@@ -667,7 +712,7 @@ class ZoneController:
             est = st.newest_estimate()
             widen = self.params.k_sigma * est.sigma_s_m
             spans.append((st.train_id, self.layout.wrap(est.s_m + widen + est.ahead_m),
-                          self.layout.wrap(est.s_m - st.setup.profile.length_m - widen - est.behind_m)))
+                          self.layout.wrap(est.s_m - st.setup.profile.length_m - widen - st.picture().behind_m)))
         return tuple(spans)
 
     def _took(self, state, auth):
