@@ -53,6 +53,7 @@ def build(config, drivers):
 
         wdt = WDT()
     loop = {}
-    for name in ("max_pass_ms", "repl_grace_ms", "stats_ms", "run_ms", "loop_ms", "broker_host", "broker_port"):
+    for name in ("max_pass_ms", "repl_grace_ms", "stats_ms", "run_ms", "loop_ms", "broker_host", "broker_port",
+                 "integrity_loop"):
         loop[name] = config[name]
     return unit, net, wdt, loop

@@ -30,11 +30,14 @@ _RFID_CS = const(15)          # D8  chip select (the board's pull-down keeps GPI
 _IPS_UART = const(0)          # UART0 RX = GPIO3 (RX pin), after the REPL is detached
 _IPS_BAUD = const(115200)     # set the hedgehog's UART speed to this in the Marvelmind dashboard
 _MAINT_PIN = const(0)         # D3  FLASH button: held low as the firmware starts = maintenance, stay in the REPL
+_INTEGRITY_PIN = const(1)     # TX  the train line: a wire loop through every coupling to the last car and back to
+                              # GND, read once the REPL is detached (`integrity_loop` in train_config.py)
 
 
 def make_drivers():
-    """The board's drivers as a dict: encoder, ips, rfid, motor (motor braked), and maint: the FLASH button's pin
-    (reads 0 while held: maintenance, the board stays in the REPL)."""
+    """The board's drivers as a dict: encoder, ips, rfid, motor (motor braked), maint: the FLASH button's pin
+    (reads 0 while held: maintenance, the board stays in the REPL), and integrity: the train line's pin number (UART0
+    TX: made an input only once the REPL is detached)."""
     import machine
 
     gc.collect()
@@ -60,4 +63,4 @@ def make_drivers():
     ips = IpsReceiver(machine.UART(_IPS_UART, _IPS_BAUD, rxbuf=256))
     gc.collect()
     return {"encoder": encoder, "ips": ips, "rfid": rfid, "motor": motor,
-            "maint": machine.Pin(_MAINT_PIN, machine.Pin.IN, machine.Pin.PULL_UP)}
+            "maint": machine.Pin(_MAINT_PIN, machine.Pin.IN, machine.Pin.PULL_UP), "integrity": _INTEGRITY_PIN}

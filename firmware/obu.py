@@ -95,6 +95,8 @@ class OnboardUnit:
     holds = 0                # times a roll back was held
     _held = False            # some pass since the last report held a roll back
     reverse = False          # the train ran backwards while driven (a motor wired reversed): braked until a reboot
+    integrity = None         # the train line's pin where a loop is fitted: it reads 1 once the loop is open
+    split = False            # the train line opened (a car came off): braked until a reboot
 
     def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
         self.train_id = wire.check_train_id(train_id)
@@ -288,6 +290,8 @@ class OnboardUnit:
         except Exception as exc:
             self._sensor_failed("encoder", exc)
             self._encoder_failed(now_ms, "read failed")
+        if self.integrity is not None and not self.split:   # a pin read: nothing to fail
+            self.split = self.integrity.value() == 1
         try:
             fix = self.ips.poll(now_ms)
             if fix is not None:
@@ -448,7 +452,8 @@ class OnboardUnit:
                 self._brake()
                 return
             self.enc_fail_ms = None
-        if self.reverse:   # it ran backwards when driven: driving it again may run it backwards again
+        if self.reverse or self.split:
+            # it ran backwards when driven (a drive may run it backwards again), or a car came off: braked for good
             self.holding = False
             self.mode = "trip"
             self._brake()
@@ -588,6 +593,8 @@ class OnboardUnit:
             self._held = self.holding
         if self.reverse:
             faults.append("reverse")
+        if self.split:
+            faults.append("split")
         # the mean duty (floored) of the passes since the last report (this one at least): the motor answers the mean
         # (it is linear in duty), where one pass's duty of a loop that alternates would tell of a speed it never had
         acc = self._duty_acc

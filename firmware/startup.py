@@ -28,6 +28,7 @@ DEFAULTS = {
     "stats_ms": 10000,        # print uptime, heap peak and link state this often (ms)
     "run_ms": 0,              # stop the loop after this long (ms); 0: run for ever (tests use it)
     "repl_grace_ms": 2000,    # boot window: the REPL stays and the FLASH button is watched, then UART0 goes to the IPS
+    "integrity_loop": False,  # a train line is wired (board.py, TX): a car that comes off opens it and the train stops
     "obu": {},                # OnboardUnit overrides, e.g. {"counts_per_m": 1250}; see obu.DEFAULTS
 }
 

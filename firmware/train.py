@@ -25,12 +25,13 @@ def uptime_ms():
     return _clock[1]
 
 
-def run(config, now, unit, link, maint, watchdog=None):
+def run(config, now, unit, link, maint, watchdog=None, integrity=None):
     """The loop, `now()` giving board ms: `unit` the OnboardUnit, `link` its link.Link, `maint` the FLASH button's
-    pin, `watchdog` a machine.WDT (or None). Returns (heap_peak, heap_live) in bytes after config['run_ms'] (if > 0),
-    or with the motor braked when the FLASH button (`maint` reads 0) is held in the boot window (maintenance: the REPL
-    stays). heap_peak: the most heap in use at the end of a pass, its garbage not yet collected (an upper bound of the
-    live heap during a pass); heap_live: the most heap in use after a pass's garbage is collected."""
+    pin, `watchdog` a machine.WDT (or None), `integrity` the train line's pin number (read once the REPL is detached,
+    where config['integrity_loop'] says one is wired). Returns (heap_peak, heap_live) in bytes after config['run_ms']
+    (if > 0), or with the motor braked when the FLASH button (`maint` reads 0) is held in the boot window (maintenance:
+    the REPL stays). heap_peak: the most heap in use at the end of a pass, its garbage not yet collected (an upper
+    bound of the live heap during a pass); heap_live: the most heap in use after a pass's garbage is collected."""
     peak = live = errors = next_stats_ms = refused_said = 0
     grace_over = False
     last_ms = now()
@@ -74,6 +75,11 @@ def run(config, now, unit, link, maint, watchdog=None):
                     import os
 
                     os.dupterm(None, 1)
+                    if integrity is not None and config.get("integrity_loop"):
+                        # TX is free now: the train line, closed to GND while the train is whole
+                        import machine
+
+                        unit.integrity = machine.Pin(integrity, machine.Pin.IN, machine.Pin.PULL_UP)
         if wire.wrap_diff(now_ms, next_stats_ms) >= 0:
             next_stats_ms = wire.wrap_add(now_ms, config["stats_ms"])
             print("stats: up_ms %d heap_peak %d heap_live %d heap_free %d link %s losses %d mode %s errors %d "
@@ -111,7 +117,7 @@ def main():
     unit, link, watchdog, config = assemble.build(config, drivers)
     del assemble
     sys.modules.pop("assemble")
-    maint = drivers["maint"]
+    maint, integrity = drivers["maint"], drivers.get("integrity")
     del drivers
     gc.collect()
-    print("stopped: heap_peak %d heap_live %d" % run(config, uptime_ms, unit, link, maint, watchdog))
+    print("stopped: heap_peak %d heap_live %d" % run(config, uptime_ms, unit, link, maint, watchdog, integrity))

@@ -26,7 +26,7 @@ _POS_MM = const(1000000)   # IPS coordinates stay within +-1 km (mm)
 
 MODES = ("idle", "run", "stop", "trip")
 FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "enc_fail", "cmd_timeout", "cmd_reject",
-          "broker_lost", "guard", "roll", "undriven", "hold", "reverse")
+          "broker_lost", "guard", "roll", "undriven", "hold", "reverse", "split")
 REPORT_FILTER = "cbtc/train/+/report"
 
 

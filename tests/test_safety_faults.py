@@ -256,10 +256,9 @@ def test_trains_started_one_behind_the_other_break_nothing(layout, trains, seed,
     assert violations(summary) == [] and min(t["distance_m"] for t in summary["trains"]) > 1.0, summary
 
 
-def _channels(config, channels):
-    """`config` with every train's encoder given `channels` channels."""
-    return replace(config, trains=[replace(t, profile=t.profile.with_changes(encoder_channels=channels))
-                                   for t in config.trains])
+def _fitted(config, **changes):
+    """`config` with every train's profile changed by `changes` (what its board and cars are fitted with)."""
+    return replace(config, trains=[replace(t, profile=t.profile.with_changes(**changes)) for t in config.trains])
 
 
 @pytest.mark.parametrize("layout,trains,seed,fault,rolled_onto", [
@@ -271,8 +270,9 @@ def _channels(config, channels):
 ])
 def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_a_collision(
         layout, trains, seed, fault, rolled_onto):
-    """With a one-channel encoder (no roll-away protection on the board)."""
-    sim = Simulation(_channels(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)), 1))
+    """With a one-channel encoder (no roll-away protection on the board) and no tail beacon."""
+    sim = Simulation(_fitted(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)), encoder_channels=1,
+                             tail_beacon=0))
     sim.run()
     summary = sim.recorder.summary()
     assert summary["authority_overruns"] == 0 and (summary["rolled_onto"] >= 1) == bool(rolled_onto), summary

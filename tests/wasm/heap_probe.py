@@ -40,9 +40,11 @@ def _roll(unit, dt_ms):
     drives the train unloaded (7.5 mm/s per %), one count per mm; integers only (um), so it adds nothing to the heap."""
     if unit.motor.mode == "drive":
         _["um"] = _.get("um", 0) + unit.motor.duty_pct * 15 * dt_ms // 2
-        pin = unit.encoder.pin_a
+        pin, pin_b = unit.encoder.pin_a, unit.encoder.pin_b
         while _["um"] >= 1000:
             _["um"] -= 1000
+            if pin_b is not None:   # forward: B, read at A's edges, lags A by a quarter cycle
+                pin_b.state = pin.state
             pin.state ^= 1
             pin.handler(pin)
 

@@ -26,7 +26,8 @@ class TrainProfile:
     friction_mps2: float = 0.08       # rolling resistance at speed (deceleration when coasting)
     counts_per_m: int = 1000          # encoder counts per metre of travel
     encoder_channels: int = 2         # 2: signed counts (the board's pin plan); 1: every edge counts up
-    tail_beacon: int = 1              # 1: an IPS beacon on the last car, its fixes read by the zone; 0: none fitted
+    tail_beacon: int = 0              # 1: an IPS beacon on the last car, its fixes read by the zone; 0: none fitted
+    integrity_loop: int = 1           # 1: a train line through the couplings, open once a car comes off; 0: none
     encoder_scale_error: float = 0.02 # wheel-diameter error: encoder distance = true * (1 + error)
     encoder_slip_sigma: float = 0.01  # random slip, fraction of distance travelled (1-sigma)
     ips_sigma_m: float = 0.05         # IPS noise per axis (1-sigma); see docs/fusion.md for the choice
@@ -52,8 +53,9 @@ class TrainProfile:
         for name in ("ips_dropout", "ips_outlier", "rfid_miss", "rfid_bit_error"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 raise ConfigError(f"train profile: {name} is a probability in [0, 1), got {getattr(self, name)}")
-        if self.tail_beacon not in (0, 1):
-            raise ConfigError(f"train profile: tail_beacon is 1 (fitted) or 0, got {self.tail_beacon}")
+        for name in ("tail_beacon", "integrity_loop"):
+            if getattr(self, name) not in (0, 1):
+                raise ConfigError(f"train profile: {name} is 1 (fitted) or 0, got {getattr(self, name)}")
         if self.encoder_channels not in (1, 2):
             raise ConfigError(f"train profile: encoder_channels is 1 or 2, got {self.encoder_channels}")
         if self.v_max_mps > self.v_noload_mps:

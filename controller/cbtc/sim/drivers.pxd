@@ -24,6 +24,11 @@ cdef class SimRfid:
                    shift_m=cython.double, first=cython.Py_ssize_t, end=cython.Py_ssize_t, i=cython.Py_ssize_t)
     cpdef _near(self)
 
+cdef class SimTrainLine:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object open
+
 cdef class SimMotor:
     cdef dict __dict__
     cdef object __weakref__

@@ -210,6 +210,16 @@ class SimRfid:
         return bytes(data).hex()
 
 
+class SimTrainLine:
+    """The train line's loop through every coupling: it reads 0 while the train is whole, 1 once a car came off."""
+
+    def __init__(self):
+        self.open = False
+
+    def value(self):
+        return 1 if self.open else 0
+
+
 class SimMotor:
     """Records the OnboardUnit's motor command for the physics model."""
 

@@ -50,8 +50,8 @@ FAULTS = {
                      "the start (as far as the room behind its tail leaves, less 0.15 m)",
                      {"train": "", "length_m": 0.5}),
     "car_dropped": ("the train's last car, this long (at most the train's length less 0.1 m), comes off at at_s and "
-                    "stays standing where it is; the train runs on without it, and the beacon on the last car (where "
-                    "fitted) stays with the car", {"train": "", "at_s": 20.0, "length_m": 0.1}),
+                    "stays standing where it is; the beacon on the last car (where fitted) stays with the car, and the "
+                    "train line (where fitted) opens", {"train": "", "at_s": 20.0, "length_m": 0.1}),
     "encoder_burst": ("the train's encoder counts this many spurious counts at once",
                       {"train": "", "at_s": 20.0, "counts": 200}),
     "odometer_jump": ("the train's odometer jumps once by this far (negative: back), a glitch of its count: a board "
@@ -218,6 +218,8 @@ def _car_dropped(sim, train, p):
         car = sim.add_stray("C" + train.train_id, train._key, car_head_s, train.profile.with_changes(length_m=car_m))
         car.frozen = car.stopped_dead = True   # a car has no board: it neither moves nor reports
         train.tail_car = car
+        if train.train_line is not None:
+            train.train_line.open = True   # the train line parts with the coupling
     sim.scheduler.call_at(p["at_s"], drop)
 
 

@@ -11,7 +11,7 @@ import hashlib
 from cbtc.firmware import obu as obu_module
 from cbtc.protocol import wire
 from cbtc.railway import physics
-from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid
+from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid, SimTrainLine
 
 
 class VirtualTrain:
@@ -32,6 +32,7 @@ class VirtualTrain:
         self.ips = SimIps(profile, layout, rng)
         self.rfid = SimRfid(profile, layout, rng)
         self.motor = SimMotor()
+        self.train_line = SimTrainLine() if profile.integrity_loop else None
         self._key = key
         self._config = profile.obu_config()
         # the board refuses an end of authority further ahead than its line allows: the layout's length, in odometer
@@ -72,8 +73,11 @@ class VirtualTrain:
         self.boots += 1
         digest = hashlib.sha256(b"boot/%d/" % self.boots + self._key).digest()
         boot_id = (int.from_bytes(digest[:4], "big") & wire.BOOT_MAX) or 1
-        return obu_module.OnboardUnit(self.train_id, self._key, boot_id, self.encoder, self.ips, self.rfid,
+        unit = obu_module.OnboardUnit(self.train_id, self._key, boot_id, self.encoder, self.ips, self.rfid,
                                       self.motor, self._publish, self._config, self._ranging)
+        if self.train_line is not None:
+            unit.integrity = self.train_line
+        return unit
 
     def reboot(self, now_s: float):
         """The board restarts at `now_s`: a new boot id, the odometer from zero, the board's clock from zero."""

@@ -78,7 +78,7 @@ def queue_scenario(layout, n_trains, seed=0, duration_s=300.0, start_gap_m=None,
     """N trains spread evenly along a loop (or a line, each wholly on it), each stopping at every station, each
     following the one ahead; with `start_gap_m`, they start one behind the other, that far from a tail to the next
     head (on a line, at its start)."""
-    profile = TrainProfile()
+    profile = TrainProfile(tail_beacon=1)   # simulated trains carry a tail beacon
     params = overrides.get("params", AuthorityParams())
     spacing_m = layout.length_m / n_trains
     need_m = profile.length_m + params.margin_m + 0.05

@@ -122,7 +122,8 @@ class TrainState:
         self.reports_taken = 0       # reports handed to its estimator: its position changes only with these
         self.reach_m = None          # its following reach and horizon (cbtc.authority.rules), set by the zone
         self.horizon_m = None
-        self.tail = None             # its tail beacon's TailWatch, from the beacon's first fix (None: none fitted)
+        self.tail = None             # its tail beacon's TailWatch, from the beacon's first fix (None: none heard)
+        self.track_m = None          # the track's length, set by the zone: how far back an unvouched tail may be
         self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
         # what the zone asks of this train per report (its estimate, picture, scale bounds): they change only with a
@@ -149,8 +150,10 @@ class TrainState:
         if picture is None:
             est = self.newest_estimate()
             behind_m = est.behind_m   # a tail beacon that finds the train longer than configured reaches further back
-            if self.tail is not None:
+            if self.tail is not None and self.tail.confirmed:
                 behind_m += self.tail.extra_behind_m(est.s_m, self.report_t_s)
+            elif self.setup.profile.tail_beacon:   # a beacon fitted and not heard yet: its tail is not vouched for
+                behind_m += self.track_m
             picture = memo["picture"] = TrainPicture(self.train_id, est.s_m, est.sigma_s_m, est.v_mps, self.report_t_s,
                                                      self.setup.profile, est.ahead_m, behind_m)
         return picture
@@ -228,6 +231,7 @@ class ZoneController:
             # the profile and the parameters are fixed: the distances that follow from them, worked out once
             state.reach_m = following_reach_m(setup.profile)
             state.horizon_m = horizon_m(setup.profile, self.params)
+            state.track_m = layout.length_m
             self.trains[setup.train_id] = state
         self._unanswered = set(self.trains.values())
         self._unheard = len(self.trains)
@@ -238,6 +242,7 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.obstacles = {}           # name -> Obstacle: on the track, and no train of the zone (cbtc.zone.obstacles)
+        self._parted = set()          # trains whose train line opened: their car's place is an obstacle
         self._balises = BaliseReader(layout)   # where an obstacle's tag reads put it
         profiles = [st.setup.profile for st in self.trains.values()]
         self._stranger_length_m = max(p.length_m for p in profiles)   # an unknown train is as long as the longest,
@@ -613,8 +618,9 @@ class ZoneController:
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
         blind = self._obstacle_nowhere(state) if self.obstacles else None
-        backwards = state.report is not None and "reverse" in state.report["flt"]
-        if all_located and not state.boots.twins and blind is None and not backwards:
+        braked = None if state.report is None else "reverse" if "reverse" in state.report["flt"] else \
+            "split" if "split" in state.report["flt"] else None   # the board brakes it for good
+        if all_located and not state.boots.twins and blind is None and braked is None:
             sit = self._situation(state, leader, now_s)
             if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
                 block_i, code = self.policy.code(sit)
@@ -638,7 +644,8 @@ class ZoneController:
             state.limited_by = f"held: two boards report as {state.train_id}" if state.boots.twins \
                 else f"held: {blind}, position unknown" if blind is not None \
                 else "held: it ran backwards when driven (motor wired reversed?): fix it, then reboot the board" \
-                if backwards else self._hold_reason()
+                if braked == "reverse" else "held: its train line opened (a car came off?): recouple, then reboot" \
+                if braked == "split" else self._hold_reason()
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
 
@@ -676,6 +683,26 @@ class ZoneController:
         if "reverse" in report["flt"] and "reverse" not in before:
             self.refusals.note(state.train_id, "ran backwards", "driven forward, it ran backwards over 2 cm: its "
                                "board brakes it for good; check the motor's wires, then reboot the board", recv_s)
+        if "split" in report["flt"] and state.train_id not in self._parted:
+            self._car_come_off(state, "split" not in before, recv_s)
+
+    def _car_come_off(self, state, just_now, recv_s):
+        """The train line opened: the rear-most tail of the newest picture from before stays occupied, an obstacle
+        to every train (the board brakes its own train for good). Told after the fact (a zone started since), the
+        car may be up to a train's length behind the tail: that stays occupied. Not located, it waits."""
+        if state.report is None or not state.estimator.localized or state.newest_estimate() is None:
+            return
+        picture = state.picture()
+        length_m = state.setup.profile.length_m
+        rear_m = picture.s_m - length_m - picture.behind_m - self.params.k_sigma * picture.sigma_s_m
+        low_m = rear_m if just_now else rear_m - length_m
+        name = f"a car come off {state.train_id}"
+        obstacle = self.obstacles[name] = Obstacle(name, 0.0, 0.0)
+        obstacle.see(recv_s, low_m, rear_m)
+        self._parted.add(state.train_id)
+        log.error("train %s: its train line opened (a car came off?): its board brakes it for good, and the place of "
+                  "its tail stays occupied until this zone restarts; recouple the car, then reboot the board",
+                  state.train_id)
 
     def _hold_reason(self):
         """Why every train is held (no authority): the first train not located, or not answering this zone."""

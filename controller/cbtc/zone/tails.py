@@ -7,7 +7,8 @@ standing). A tail whose fixes moved as far as the head did then reaches back to 
 any other (a dropped car standing, or a train too slow to tell) to the rear-most of its newest fixes and the spread.
 `extra_behind_m` is added to what the authority of the train behind takes off. A beacon heard and then silent leaves
 its last fix occupied: the rear point stays there, however far the head moves on, until the beacon is heard again. A
-train whose beacon was never heard has none fitted: its configured length stands. Pure: positions and times in,
+train configured with a beacon (`TrainProfile.tail_beacon`) reaches back over the whole track until its beacon
+has been heard three times; one configured without stands on its configured length. Pure: positions and times in,
 metres out.
 """
 
@@ -43,6 +44,11 @@ class TailWatch:
         self.heard_s = t_s
         self._last_tail_s = tail_s_m
 
+    @property
+    def confirmed(self) -> bool:
+        """Enough fixes to check the length by: until then the train's tail is not vouched for."""
+        return len(self._lengths) >= 3
+
     def extra_behind_m(self, head_s_m: float, now_s: float) -> float:
         """How much further back than its configured length the train may reach, its head estimate at `head_s_m` at
         controller time `now_s` (0.0 with no beacon, or one that agrees)."""
@@ -70,11 +76,13 @@ class TailWatch:
         return behind_m % self.loop_m if self.loop_m else behind_m
 
     def _moves_with_head(self) -> bool:
-        """The newest fixes' tail went as far as the head did (within half of it), and the head went 10 cm."""
-        samples = self._samples
-        (tail0, head0), (tail1, head1) = samples[0], samples[-1]
-        head_m = self._behind_head_m(head1, head0)
-        if head_m > (self.loop_m or 1e9) / 2 or head_m < 0.10:
+        """The measured length stayed, and the head went 10 cm: the tail went as far as the head did. The medians of the
+        oldest three and the newest three samples lie two of the four intervals apart, so a standing tail grows the
+        length by half what the head went between them, one that follows not at all: the mark is a quarter. One
+        outlier fix moves neither median."""
+        samples, lengths = self._samples, list(self._lengths)
+        head_m = self._behind_head_m(samples[-1][1], samples[0][1])
+        if head_m > (self.loop_m or 1e9) / 2 or head_m < 0.10 or len(lengths) < 5:
             return False
-        tail_m = self._behind_head_m(tail1, tail0)
-        return abs(tail_m - head_m) < 0.5 * head_m
+        grew_m = sorted(lengths[-3:])[1] - sorted(lengths[:3])[1]
+        return abs(grew_m) < 0.25 * head_m
