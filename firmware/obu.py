@@ -66,6 +66,7 @@ _SLOW_MMPS = const(50)   # what "slower" means there (mm/s)
 _SPAN_MAX_MS = const(65535)   # the longest time a tag read's span may state (wire_zc.SPAN_MAX_MS)
 _BACK_MM = const(20)     # a two-channel encoder seeing the train this far behind the furthest it reached: it rolls
                          # back (undriven: held by driving forward) or runs backwards (driven: braked for good) (mm)
+_JUMP_MM = const(50)     # a signed count this far back in one pass (2.5 m/s at 20 ms) is a glitch, not a roll (mm)
 _HOLD_DONE_MM = const(5)  # a hold drives the train back to within this of the furthest it reached, then brakes (mm)
 
 
@@ -282,7 +283,10 @@ class OnboardUnit:
             odo_mm = count * 1000 // self.cfg["counts_per_m"]
             if odo_mm != self.odo_mm:
                 self._last_move_ms = now_ms
-                if signed:
+                if signed and odo_mm < self.odo_mm - _JUMP_MM:   # no train goes back that fast: a glitch
+                    self._encoder_failed(now_ms, "count jumped back")
+                    self._peak_mm = odo_mm
+                elif signed:
                     self._back_check(odo_mm)
                 elif self.duty_pct == 0 and self.v_ref_mmps <= 0:   # braked to a standstill (or tripped) since the
                     self._rolled = True                              # last pass: not travel the board drove

@@ -165,3 +165,12 @@ def test_the_new_faults_check_their_parameters(text, says):
     from cbtc.sim import faults
     with pytest.raises(ConfigError, match=says):
         faults.parse(text)
+
+
+def test_a_signed_count_that_jumps_back_is_a_failed_encoder_not_a_reverse_movement():
+    unit, enc, motor = _unit()
+    now = _run(unit, enc, 0, 5)
+    unit.duty_pct = 30
+    enc.counts -= 500                         # half a metre back in one pass: no train moves so
+    _run(unit, enc, now, 1)
+    assert unit.enc_fail_ms is not None and not unit.reverse and not unit.holding
