@@ -625,10 +625,7 @@ class UkfEstimator:
             else:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
-                tag_s_m, d_m, in_field, span_s = event.data
-                offset_m, _var = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-                here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
-                story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
+                story_m, _var = self._read_story(f, *event.data)
                 new.tag_story = story_m
                 if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
                     new.tag_offset = story_m
@@ -770,6 +767,13 @@ class UkfEstimator:
         offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
         return self._reach_around(tag_s_m - offset_m, 3.0 * sqrt(var_m2), d_m)
 
+    def _read_story(self, f, tag_s_m, d_m, in_field, span_s):
+        """Where a balise read puts the head at the filter's time, as an offset from the filter's position (m, the
+        short way round), and the read's variance (m^2)."""
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
+        here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
+        return circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m), var_m2
+
     def _reach_around(self, s_m, half_m, d_m):
         wrap = self.layout.wrap
         return wrap(s_m - half_m), wrap(s_m + half_m), d_m, d_m
@@ -777,9 +781,7 @@ class UkfEstimator:
     def _within_doubt(self, f, doubt, tag_s_m, d_m, in_field, span_s):
         """True when a balise read puts the head within `doubt` (the pending placement's bound, as offsets from the
         filter's position), widened by 3 sigma of the filter and of the read and the tag's bias."""
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-        here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
-        story_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
+        story_m, var_m2 = self._read_story(f, tag_s_m, d_m, in_field, span_s)
         low_m, high_m = doubt if doubt is not None else (0.0, 0.0)
         spread_m = 3.0 * (sqrt(max(f.cov[S][S], 0.0)) + sqrt(var_m2)) + self.params.tag_bias_m
         return low_m - spread_m <= story_m <= high_m + spread_m
@@ -793,9 +795,7 @@ class UkfEstimator:
         not repeat."""
         if story_m is None or reach is None:
             return False
-        offset_m, _var = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-        here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
-        now_m = circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m)
+        now_m, _var = self._read_story(f, tag_s_m, d_m, in_field, span_s)
         worn_m = _WORN_SHARE * abs(d_m - reach[3]) + _STORY_TOL_M
         return now_m * story_m > 0.0 and abs(now_m - story_m) <= max(_STORY_TOL_M, 0.25 * abs(story_m)) \
             and abs(now_m) <= worn_m
