@@ -174,3 +174,15 @@ def test_a_signed_count_that_jumps_back_is_a_failed_encoder_not_a_reverse_moveme
     enc.counts -= 500                         # half a metre back in one pass: no train moves so
     _run(unit, enc, now, 1)
     assert unit.enc_fail_ms is not None and not unit.reverse and not unit.holding
+
+
+def test_a_train_a_few_centimetres_longer_shows_in_the_mean_of_the_long_window():
+    """0.06 m longer: the median of five does not tell it from noise; forty samples' mean does."""
+    rng = np.random.default_rng(1)
+    watch = TailWatch(0.3, 10.0)
+    t_s, head_m = _samples(watch, 0.36 + rng.normal(0, 0.05, 40), v_mps=0.0)
+    extra_m = watch.extra_behind_m(head_m, t_s)
+    assert 0.06 <= extra_m <= 0.06 + 0.06 and not watch.longer
+    fair = TailWatch(0.3, 10.0)
+    t_s, head_m = _samples(fair, 0.3 + rng.normal(0, 0.05, 40), v_mps=0.0)
+    assert fair.extra_behind_m(head_m, t_s) == 0.0

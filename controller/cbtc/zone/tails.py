@@ -5,7 +5,9 @@ sample of the train's length. The median of the newest samples, more than TOL_M 
 the train is longer than configured (a wrong length, a car added, or a car dropped whose beacon stays with it,
 standing). A tail whose fixes moved as far as the head did then reaches back to that length and the samples' spread;
 any other (a dropped car standing, or a train too slow to tell) to the rear-most of its newest fixes and the spread.
-`extra_behind_m` is added to what the authority of the train behind takes off. A beacon heard and then silent leaves
+A train only a few cm longer shows in the mean of the newest 40 samples (5 s): beyond 4 sigma of that mean it
+reaches back that far and the 4 sigma. `extra_behind_m` is added to what the authority of the train behind takes
+off. A beacon heard and then silent leaves
 its last fix occupied: the rear point stays there, however far the head moves on, until the beacon is heard again. A
 train configured with a beacon (`TrainProfile.tail_beacon`) reaches back over the whole track until its beacon
 has been heard three times; one configured without stands on its configured length. Pure: positions and times in,
@@ -20,6 +22,9 @@ SAMPLES = 5         # newest length samples kept; their median is the measured l
 SILENT_S = 1.0      # no tail fix for this long (the beacon samples at 8 Hz): the tail is lost, kept where last seen
 SPREAD_M = 0.05     # what the measured length may still lie short of the true one (the fixes' noise and the head
                     # estimate's share); added when the train is found longer
+LONG_SAMPLES = 40   # the length is steady: the mean of this many samples (5 s of fixes) measures it to a cm
+SAMPLE_SIGMA_M = 0.03   # the least sigma a length sample is taken to have (the window's own spread, when wider)
+OUTLIER_M = 0.15    # a sample this far from the long window's median is an outlier fix, left out of its mean
 
 
 class TailWatch:
@@ -28,6 +33,7 @@ class TailWatch:
         self.loop_m = loop_m         # the loop's length (None: an open line)
         self._lengths = deque(maxlen=SAMPLES)
         self._samples = deque(maxlen=SAMPLES)   # (tail_s, head_s) of the same fixes
+        self._long = deque(maxlen=LONG_SAMPLES)   # the newest length samples, for the steady length
         self.heard_s = None          # controller time of the newest fix
         self._last_tail_s = None     # track position of the newest fix
         self.longer = False          # the newest verdict: longer than configured (for the zone's log)
@@ -40,6 +46,7 @@ class TailWatch:
         if loop_m:
             length_m %= loop_m
         self._lengths.append(length_m)
+        self._long.append(length_m)
         self._samples.append((tail_s_m, head_s_m))
         self.heard_s = t_s
         self._last_tail_s = tail_s_m
@@ -64,12 +71,28 @@ class TailWatch:
         median_m = sorted(self._lengths)[len(self._lengths) // 2]
         self.longer = median_m > self.length_m + TOL_M
         if not self.longer:
-            return 0.0
+            return self._steady_extra_m()
         if self._moves_with_head():   # a train longer than configured: its length, measured
             return median_m + SPREAD_M - self.length_m
         # a tail that does not follow the head (a car come off) stands where its fixes put it: at the rear-most
         rear_m = max(self._behind_head_m(head_s_m, tail_s) for tail_s, _h in self._samples)
         return rear_m + SPREAD_M - self.length_m
+
+    def _steady_extra_m(self) -> float:
+        """A train a few cm longer than configured, which the median of five does not tell from noise: the mean of
+        the long window's samples (outliers left out) beyond 4 sigma of that mean (the samples' own spread), and
+        that 4 sigma."""
+        window = sorted(self._long)
+        if len(window) < 10:
+            return 0.0
+        median_m = window[len(window) // 2]
+        kept = [x for x in window if abs(x - median_m) <= OUTLIER_M]
+        n = len(kept)
+        mean_m = sum(kept) / n
+        sigma_m = max(SAMPLE_SIGMA_M, (sum((x - mean_m) ** 2 for x in kept) / (n - 1)) ** 0.5)
+        tol_m = 4.0 * sigma_m / n ** 0.5
+        excess_m = mean_m - self.length_m
+        return excess_m + tol_m if excess_m > tol_m else 0.0
 
     def _behind_head_m(self, head_s_m, tail_s_m):
         behind_m = head_s_m - tail_s_m
