@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from cbtc.bus.mock_broker import LinkProfile
-from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
 from cbtc.protocol import wire
 from cbtc.railway.physics import braking_distance_m
@@ -471,6 +470,10 @@ def test_hazards_no_single_fault_named_before_end_in_no_violation(layout, trains
     assert violations(summary) == [] and summary["rolled_onto"] == 0, summary
 
 
-def test_a_tag_cannot_be_moved_past_its_neighbour():
-    with pytest.raises(ConfigError, match="tag spacing"):
-        _run_faulted("itb_square", 2, 0, 25.0, "tag_moved:at_s=20,distance_m=0.5")
+def test_a_tag_moves_no_further_than_its_neighbours_leave_room_and_the_run_goes_on():
+    """A draw that would take a tag past its neighbour (or across the track's origin) stops 1 cm short of it: a
+    campaign run does not end in an error (one such draw stopped a 2000-run campaign at run 1691)."""
+    sim = _run_faulted("itb_square", 2, 0, 25.0, "tag_moved:at_s=20,distance_m=5.0")
+    positions = sim.trains[0].rfid._tag_s_m
+    assert positions == sorted(positions) and all(b - a >= 0.0099 for a, b in zip(positions, positions[1:]))
+    assert violations(sim.recorder.summary()) == []

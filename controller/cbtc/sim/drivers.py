@@ -11,7 +11,6 @@ from math import cos, floor, pi, sin, sqrt
 
 import numpy as np
 
-from cbtc.errors import ConfigError
 from cbtc.railway import balise
 from cbtc.railway.ips_frame import track_to_ips
 
@@ -139,19 +138,20 @@ class SimRfid:
         """The virtual train tells the reader where it is (true head position, m)."""
         self._s_m = s_m
 
-    def move_tag(self, uid: str, distance_m: float) -> None:
+    def move_tag(self, uid: str, distance_m: float) -> float:
         """Fault injection: the tag `uid` lies `distance_m` further along the track than the layout (and its telegram)
-        says; ConfigError when that would take it past a neighbour (the tags stay in the layout's order)."""
+        says, as far as its neighbours and the track's origin leave room, less 1 cm (the tags stay in the layout's
+        order); returns how far it moved."""
         i = self._tag_index[uid]
         positions = self._tag_s_m
-        moved_m = positions[i] + distance_m
-        if self._layout.closed:
-            moved_m = float(self._layout.wrap(moved_m))
-        ordered = positions[:i] + [moved_m] + positions[i + 1:]
-        if ordered != sorted(ordered):
-            raise ConfigError(f"tag_moved: tag {uid} moved {distance_m:+.3f} m would pass its neighbour; give a "
-                              f"distance under the tag spacing")
-        positions[i] = moved_m
+        low_m = positions[i - 1] if i > 0 else 0.0
+        high_m = positions[i + 1] if i + 1 < len(positions) else self._layout.length_m
+        if distance_m < 0.0:
+            distance_m = max(distance_m, min(0.0, low_m + 0.01 - positions[i]))
+        else:
+            distance_m = min(distance_m, max(0.0, high_m - 0.01 - positions[i]))
+        positions[i] += distance_m
+        return distance_m
 
     def poll(self, now_ms: int):
         self.data = None

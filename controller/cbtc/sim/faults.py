@@ -91,7 +91,8 @@ FAULTS = {
                         "ahead of the train's head (as unknown_board), and reports from then on",
                         {"train": "", "at_s": 20.0, "distance_m": 1.0}),
     "tag_moved": ("the first tag ahead of the train at at_s lies this far from where the layout (and its telegram) "
-                  "says (negative: back; knocked or laid by hand), for the rest of the run",
+                  "says (negative: back; knocked or laid by hand; as far as its neighbours and the track's origin "
+                  "leave room, less 1 cm), for the rest of the run",
                   {"train": "", "at_s": 20.0, "distance_m": 0.05}),
 }
 _DIRECTIONS = ("up", "down", "both")
