@@ -186,3 +186,16 @@ def test_a_train_a_few_centimetres_longer_shows_in_the_mean_of_the_long_window()
     fair = TailWatch(0.3, 10.0)
     t_s, head_m = _samples(fair, 0.3 + rng.normal(0, 0.05, 40), v_mps=0.0)
     assert fair.extra_behind_m(head_m, t_s) == 0.0
+
+
+@pytest.mark.parametrize("layout,trains,seed,fault", [
+    # a tag read stamped before an odometer jump, in the report after it, placed the fresh estimate at 14.8 m/s
+    ("itb_square", 5, 1491, "odometer_jump:at_s=14.1,distance_m=0.688,train=T2"),
+    # carried back into the authority of the train behind, whose front had reached past its tail: a loop's room
+    ("itb_square", 6, 1217, "boot_moved:at_s=13.8,distance_m=-0.222,train=T5"),
+])
+def test_campaign_runs_that_broke_the_rules(layout, trains, seed, fault):
+    sim = Simulation(sim_config(layout, trains, seed, 60.0, fault_texts=(fault,)))
+    sim.run()
+    summary = sim.recorder.summary()
+    assert violations(summary) == [], summary

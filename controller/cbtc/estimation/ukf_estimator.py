@@ -370,6 +370,8 @@ class UkfEstimator:
         # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead;
         # the part a train braking from speed surely made forward stays travel (_may_have_turned, _surely_forward_m)
         odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
+        if v_mps > self._top_mps or v_mps < -self._top_mps:   # faster than the motor drives: a burst or a jump
+            v_mps = self._top_mps if v_mps > 0.0 else -self._top_mps
         rolled_m, run_m, burst = 0.0, self._roll_run_m, False
         if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps):
             rolled_m = max(0.0, odo_m - self._board_odo_m - self._surely_forward_m())

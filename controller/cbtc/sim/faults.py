@@ -341,10 +341,17 @@ def _room_m(sim, train, distance_m):
             [t.tail_s - train.head_s for t in others if t.tail_s >= train.head_s] + [layout.length_m - train.head_s]
     else:
         fronts = [_front_s(sim, t) for t in others]
-        room = [layout.ahead_m(front, train.tail_s) for front in fronts] if layout.closed else \
+        # a front already past the tail (an authority reaching into the train) leaves no room, not a loop's worth
+        room = [_short_ahead_m(layout, front, train.tail_s) for front in fronts] if layout.closed else \
             [train.tail_s - front for front in fronts if front <= train.tail_s] + [train.tail_s]
     room_m = max(0.0, min(room + [abs(distance_m) + 0.1]) - 0.1)
     return room_m if distance_m >= 0.0 else -room_m
+
+
+def _short_ahead_m(layout, from_s, to_s):
+    """How far `to_s` lies ahead of `from_s` on a loop, 0 when it lies behind it (the short way round)."""
+    ahead_m = layout.ahead_m(from_s, to_s)
+    return ahead_m if ahead_m <= layout.length_m / 2 else 0.0
 
 
 def _front_s(sim, train):

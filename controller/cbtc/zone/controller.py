@@ -461,6 +461,9 @@ class ZoneController:
                 self.refusals.note(state.train_id, "odometer jump", f"{jump_mm} mm further than the train can travel: "
                                    f"locating it afresh", recv_s)
                 self._relocate_wheel_lost(state)
+                if report["tags"]:   # stamped with an odometer of either frame: none places the fresh estimate
+                    state.measurements_dropped += len(report["tags"])
+                    report = dict(report, tags=[])
             state.estimator.on_report(report, state.clock)
             if state.estimator.localized and not state.estimator.doubt_kept:
                 state.doubt_span = None   # a balise has confirmed where it is
