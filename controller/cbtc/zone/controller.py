@@ -660,6 +660,14 @@ class ZoneController:
             self.refusals.note(UNKNOWN, "tail fix", f"a tail beacon fix for train {train_id!r}, not in this zone",
                                t_s)
             return
+        try:
+            self._see_tail(state, t_s, x_mm, y_mm)
+        except Exception as exc:   # never stops the zone: the train's tail is not vouched for until heard afresh
+            state.tail = None
+            self.refusals.note(train_id, "tail fix", f"checking its tail failed: {exc!r}", t_s)
+
+    def _see_tail(self, state, t_s, x_mm, y_mm):
+        train_id = state.train_id
         if not state.estimator.localized or state.clock.offset_s is None:
             return
         est = state.estimator.estimate(t_s)

@@ -88,6 +88,8 @@ class TailWatch:
         median_m = window[len(window) // 2]
         kept = [x for x in window if abs(x - median_m) <= OUTLIER_M]
         n = len(kept)
+        if n < 10:   # the samples scatter too widely to measure a steady length by (a tail on the move)
+            return 0.0
         mean_m = sum(kept) / n
         sigma_m = max(SAMPLE_SIGMA_M, (sum((x - mean_m) ** 2 for x in kept) / (n - 1)) ** 0.5)
         tol_m = 4.0 * sigma_m / n ** 0.5
