@@ -140,7 +140,7 @@ def test_a_train_longer_than_configured_is_kept_clear_of_by_its_tail_beacon(layo
 
 
 def test_a_car_that_comes_off_leaves_its_place_occupied_and_its_train_braked():
-    sim = Simulation(sim_config("lego_oval", 6, 1, 40.0, fault_texts=("car_dropped:train=T2,at_s=12,length_m=0.2",)))
+    sim = Simulation(sim_config("lego_oval", 6, 1, 30.0, fault_texts=("car_dropped:train=T2,at_s=12,length_m=0.2",)))
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
@@ -151,7 +151,7 @@ def test_a_car_that_comes_off_leaves_its_place_occupied_and_its_train_braked():
 def test_a_car_that_comes_off_unseen_is_run_into():
     """With neither a train line nor a tail beacon nothing sees the car, and truth counts the train behind hitting
     it: what the two protections are for."""
-    config = sim_config("lego_oval", 6, 1, 40.0, fault_texts=("car_dropped:train=T2,at_s=12,length_m=0.2",))
+    config = sim_config("lego_oval", 6, 1, 30.0, fault_texts=("car_dropped:train=T2,at_s=12,length_m=0.2",))
     sim = Simulation(_fitted(config, integrity_loop=0, tail_beacon=0))
     sim.run()
     assert "collision" in violations(sim.recorder.summary())
@@ -195,7 +195,7 @@ def test_a_train_a_few_centimetres_longer_shows_in_the_mean_of_the_long_window()
     ("itb_square", 6, 1217, "boot_moved:at_s=13.8,distance_m=-0.222,train=T5"),
 ])
 def test_campaign_runs_that_broke_the_rules(layout, trains, seed, fault):
-    sim = Simulation(sim_config(layout, trains, seed, 60.0, fault_texts=(fault,)))
+    sim = Simulation(sim_config(layout, trains, seed, 30.0, fault_texts=(fault,)))
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
