@@ -7,11 +7,10 @@ standing). A tail whose fixes moved as far as the head did then reaches back to 
 any other (a dropped car standing, or a train too slow to tell) to the rear-most of its newest fixes and the spread.
 A train only a few cm longer shows in the mean of the newest 40 samples (5 s): beyond 4 sigma of that mean it
 reaches back that far and the 4 sigma. `extra_behind_m` is added to what the authority of the train behind takes
-off. A beacon heard and then silent leaves
-its last fix occupied: the rear point stays there, however far the head moves on, until the beacon is heard again. A
-train configured with a beacon (`TrainProfile.tail_beacon`) reaches back over the whole track until its beacon
-has been heard three times; one configured without stands on its configured length. Pure: positions and times in,
-metres out.
+off. A beacon heard and then silent leaves its last fix occupied: the rear point stays there, however far the head
+moves on, until the beacon is heard again. A train configured with a beacon (`TrainProfile.tail_beacon`) reaches
+back over the whole track until its beacon has been heard three times; one configured without stands on its
+configured length. Pure: positions and times in, metres out.
 """
 
 from collections import deque
@@ -31,44 +30,39 @@ class TailWatch:
     def __init__(self, length_m: float, loop_m: float = None):
         self.length_m = length_m     # the configured length
         self.loop_m = loop_m         # the loop's length (None: an open line)
-        self._lengths = deque(maxlen=SAMPLES)
-        self._samples = deque(maxlen=SAMPLES)   # (tail_s, head_s) of the same fixes
+        self._samples = deque(maxlen=SAMPLES)   # (tail_s, head_s) of the newest fixes
         self._long = deque(maxlen=LONG_SAMPLES)   # the newest length samples, for the steady length
         self.heard_s = None          # controller time of the newest fix
-        self._last_tail_s = None     # track position of the newest fix
         self.longer = False          # the newest verdict: longer than configured (for the zone's log)
 
     def see(self, t_s: float, tail_s_m: float, head_s_m: float) -> None:
         """A fix put the tail at `tail_s_m` when the head estimate was at `head_s_m` (both at controller time
         `t_s`)."""
-        loop_m = self.loop_m
-        length_m = head_s_m - tail_s_m
-        if loop_m:
-            length_m %= loop_m
-        self._lengths.append(length_m)
-        self._long.append(length_m)
+        self._long.append(self._behind_head_m(head_s_m, tail_s_m))
         self._samples.append((tail_s_m, head_s_m))
         self.heard_s = t_s
-        self._last_tail_s = tail_s_m
+
+    @property
+    def _lengths(self) -> list:
+        """The length samples of the newest SAMPLES fixes."""
+        return list(self._long)[-len(self._samples):]
 
     @property
     def confirmed(self) -> bool:
         """Enough fixes to check the length by: until then the train's tail is not vouched for."""
-        return len(self._lengths) >= 3
+        return len(self._samples) >= 3
 
     def extra_behind_m(self, head_s_m: float, now_s: float) -> float:
         """How much further back than its configured length the train may reach, its head estimate at `head_s_m` at
         controller time `now_s` (0.0 with no beacon, or one that agrees)."""
-        loop_m = self.loop_m
-        if self.heard_s is None or len(self._lengths) < 3:
+        if self.heard_s is None or len(self._samples) < 3:
             return 0.0
         if now_s - self.heard_s > SILENT_S:   # lost: its last fix stays occupied
-            length_m = head_s_m - self._last_tail_s
-            if loop_m:
-                length_m %= loop_m
+            length_m = self._behind_head_m(head_s_m, self._samples[-1][0])
             self.longer = length_m + SPREAD_M > self.length_m + TOL_M
             return max(0.0, length_m + SPREAD_M - self.length_m)
-        median_m = sorted(self._lengths)[len(self._lengths) // 2]
+        lengths = self._lengths
+        median_m = sorted(lengths)[len(lengths) // 2]
         self.longer = median_m > self.length_m + TOL_M
         if not self.longer:
             return self._steady_extra_m()
@@ -105,7 +99,7 @@ class TailWatch:
         oldest three and the newest three samples lie two of the four intervals apart, so a standing tail grows the
         length by half what the head went between them, one that follows not at all: the mark is a quarter. One
         outlier fix moves neither median."""
-        samples, lengths = self._samples, list(self._lengths)
+        samples, lengths = self._samples, self._lengths
         head_m = self._behind_head_m(samples[-1][1], samples[0][1])
         if head_m > (self.loop_m or 1e9) / 2 or head_m < 0.10 or len(lengths) < 5:
             return False
