@@ -141,3 +141,16 @@ def test_a_campaign_over_a_scenario_file_draws_faults_for_its_trains_and_reprodu
 def test_a_scenario_campaign_refuses_what_the_file_sets(capsys, extra, named):
     assert main(["campaign", "--scenario", "lego_oval_mixed", "--runs", "2"] + extra) == 2
     assert named in capsys.readouterr().err
+
+
+def test_a_run_that_raises_is_recorded_as_a_violation_and_the_campaign_goes_on(monkeypatch):
+    spec = campaign.plan(2, campaign.CLASSES, ("itb_square",), (2,), 5.0, 0)[0]
+
+    def broken(self):
+        raise ZeroDivisionError("float division by zero")
+    monkeypatch.setattr(campaign.RunSpec, "config", broken)
+    record = campaign.run_one(spec)
+    assert record["violations"] == ["raised"] and record["error"] == "ZeroDivisionError: float division by zero"
+    table = campaign.tables([spec], {record["command"]: record})
+    assert table["runs_with_violations"] == 1 and table["violations"][0]["error"].startswith("ZeroDivision")
+    assert table["violations"][0]["command"] == spec.command()

@@ -189,6 +189,6 @@ def _print(f):
     if f["violations"]:
         print(f"{len(f['violations'])} runs with violations; each reproduces alone with:")
         for v in f["violations"]:
-            print(f"  {'+'.join(v['kinds'])}: {v['command']}")
+            print(f"  {'+'.join(v['kinds'])}: {v['command']}" + (f"  ({v['error']})" if "error" in v else ""))
     else:
         print("no violations")

@@ -222,15 +222,22 @@ def run_one(spec: RunSpec) -> dict:
     level = logger.level
     logger.setLevel(logging.ERROR)   # the figures count what the zone would log; the caller's level comes back after
     started = time.perf_counter()
-    try:
-        summary = Simulation(spec.config()).run().summary()
-    finally:
-        logger.setLevel(level)
     keep = ("collisions", "authority_overruns", "rolled_onto", "granted_beyond_m", "emergency_trips", "encoder_trips",
             "stranded", "mean_following_gap_m", "min_gap_m", "mean_lap_s", "simulated_s")
-    return {"command": spec.command(), "spec": asdict(spec), "summary": {k: summary[k] for k in keep},
-            "violations": violations(summary), "wall_s": round(time.perf_counter() - started, 3),
-            "code": code_fingerprint()}
+    try:
+        summary = Simulation(spec.config()).run().summary()
+        found, error = violations(summary), None
+    except Exception as exc:   # one run that raises is a finding of the campaign, not its end
+        summary = dict.fromkeys(keep, None)
+        summary.update(dict.fromkeys(_SUMS, 0), simulated_s=0.0)
+        found, error = ["raised"], f"{type(exc).__name__}: {exc}"
+    finally:
+        logger.setLevel(level)
+    record = {"command": spec.command(), "spec": asdict(spec), "summary": {k: summary[k] for k in keep},
+              "violations": found, "wall_s": round(time.perf_counter() - started, 3), "code": code_fingerprint()}
+    if error is not None:
+        record["error"] = error
+    return record
 
 
 @functools.lru_cache(maxsize=1)
@@ -265,7 +272,8 @@ def tables(specs, records: dict) -> dict:
                              "layout": r["spec"]["layout"], "trains": r["spec"]["trains"], "seed": r["spec"]["seed"],
                              "collisions": r["summary"]["collisions"],
                              "authority_overruns": r["summary"]["authority_overruns"],
-                             "granted_beyond_m": r["summary"]["granted_beyond_m"]}
+                             "granted_beyond_m": r["summary"]["granted_beyond_m"],
+                             **({"error": r["error"]} if "error" in r else {})}
                             for rows in by_fault.values() for r in rows if r["violations"]]
     return result
 
