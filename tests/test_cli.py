@@ -98,6 +98,10 @@ def test_every_number_option_refuses_text_and_nan_in_one_line(capsys, words, fla
     (["zone", "--summary-json", "/nonexistent-folder/s.json"], "argument --summary-json"),
     (["campaign", "--results", "/nonexistent-folder/r.jsonl"], "argument --results"),
     (["calibrate", "encoder", "--reports", "/nonexistent-folder/run.jsonl"], "argument --reports"),
+    (["zone", "--clear-track", "everything"], "argument --clear-track: 'everything' is not a stretch of track"),
+    (["zone", "--clear-track", "1-1"], "FROM and TO different"),
+    (["zone", "--broker", "mqtt://127.0.0.1:1", "--layout", "itb_square", "--trains", "2", "--clear-track", "0-9"],
+     "--clear-track 0-9: not on layout itb_square, whose track runs from 0 to 6.81 m"),
 ])
 def test_the_shared_vocabulary_and_paths_are_refused_in_one_line(capsys, argv, named):
     assert main(argv) == 2

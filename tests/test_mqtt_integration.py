@@ -46,7 +46,7 @@ class Fleet:
         out = open(os.path.join(self.folder, tag + ".out"), "w")
         err_path = os.path.join(self.folder, tag + ".err")
         proc = subprocess.Popen(cbtc("zone", "--broker", self.broker.url, "--layout", LAYOUT, "--train-ids", "A,B",
-                                     "--sim-seed", str(SIM_SEED), "--summary-json",
+                                     "--clear-track", "all", "--sim-seed", str(SIM_SEED), "--summary-json",
                                      os.path.join(self.folder, tag + "-summary.json"), "--status-period", "0.2",
                                      "--status-json", os.path.join(self.folder, tag + "-status.json")),
                                 stdout=out, stderr=open(err_path, "w"))
@@ -355,6 +355,7 @@ def test_zone_and_trains_run_a_scenario_file(mosquitto, tmp_path):
                         "faults:\n  - {name: stop_dead, train: F1, at_s: 100}\n")
     summary = str(tmp_path / "trains.json")
     zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--scenario", str(scenario), "--duration", "9",
+                                 "--clear-track", "all",
                                  "--quiet", "--summary-json", str(tmp_path / "zone.json"), "--record",
                                  str(tmp_path / "run.jsonl")),
                             stdout=subprocess.DEVNULL, stderr=open(tmp_path / "zone.err", "w"))
@@ -382,7 +383,7 @@ def test_a_key_mismatch_is_said_once_per_train_per_10_s_with_the_key_file_and_th
     keys = str(tmp_path / "keys.json")
     assert subprocess.run(cbtc("keys", "new", "--train-ids", "A,B", "--out", keys), capture_output=True).returncode == 0
     zone = subprocess.Popen(cbtc("zone", "--broker", mosquitto.url, "--layout", LAYOUT, "--train-ids", "A,B",
-                                 "--keys", keys, "--duration", "6", "--quiet"),
+                                 "--clear-track", "all", "--keys", keys, "--duration", "6", "--quiet"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     trains = subprocess.Popen(cbtc("trains", "--broker", mosquitto.url, "--layout", LAYOUT, "--trains", "2",
                                    "--sim-seed", "0", "--duration", "5.5", "--quiet"),

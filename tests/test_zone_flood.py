@@ -102,6 +102,7 @@ def test_a_board_with_another_key_is_said_once_per_10_s_with_the_count_the_key_s
     keys = {spec.train_id: bytes(16) for spec in config.trains}
     now = [0.0]
     zc = build_zone(config, keys, Quiet(), lambda: now[0])
+    zc.clear_track(None, by="the test")   # only what the reports bring is logged
     zc.key_source = "keys file keys.json"
     lines = Lines()
     logger = logging.getLogger("cbtc.zone")
@@ -129,6 +130,7 @@ def test_a_board_of_another_protocol_version_is_told_to_be_flashed_with_this_one
     config = paper_scenario(load_layout("itb_square"), seed=0, laps=None, duration_s=30.0)
     keys = {spec.train_id: bytes(16) for spec in config.trains}
     zc = build_zone(config, keys, Quiet(), lambda: 0.0)
+    zc.clear_track(None, by="the test")   # only what the reports bring is logged
     lines = Lines()
     logger = logging.getLogger("cbtc.zone")
     logger.addHandler(lines)

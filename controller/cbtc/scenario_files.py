@@ -18,7 +18,7 @@ from cbtc.zone.config import ScenarioConfig, TrainSpec
 from cbtc.zone.factory import make_policy
 
 TOP_KEYS = ("name", "description", "layout", "seed", "duration_s", "laps", "policy", "blocks", "estimator", "dwell_s",
-            "trains", "faults", "reference")
+            "trains", "faults", "reference", "clear_track")
 # figures a `reference:` may give, as `cbtc compare` measures them (cbtc.experiments.headway.system_figures)
 REFERENCE_FIGURES = ("mean_gap_m", "mean_gap_following_m", "min_gap_m", "mean_lap_s", "mean_headway_s",
                      "trains_per_hour")
@@ -26,6 +26,7 @@ TRAIN_KEYS = ("id", "start", "stops", "dwell_s", "profile")
 PROFILE_KEYS = tuple(f.name for f in fields(TrainProfile))
 POLICIES = ("moving_block", "fixed_block")
 ESTIMATORS = ("ukf", "odometry")
+CLEAR_TRACK = ("truth", "none")   # ScenarioConfig.clear_track
 
 
 class _Map(dict):
@@ -204,10 +205,12 @@ def scenario_from_dict(data, source="<dict>") -> ScenarioConfig:
         options["blocks"] = r.number(data, "blocks", "blocks", minimum=2, whole=True)
     estimator = r.choice(data, "estimator", "estimator", ESTIMATORS, "ukf")
     dwell_s = r.dwell(data, "dwell_s", "dwell_s", (1.0, 3.0))
+    clear_track = r.choice(data, "clear_track", "clear_track", CLEAR_TRACK, "truth")
     trains = _trains(r, data, layout)
     injected = _faults(r, data, [spec.train_id for spec in trains])
     config = ScenarioConfig(layout=layout, trains=trains, seed=seed, duration_s=duration_s, laps=laps, policy=policy,
                             estimator=estimator, dwell_s=dwell_s, policy_options=options, faults=injected,
+                            clear_track=clear_track,
                             name=str(data.get("name") or os.path.basename(source)[:-5]),
                             reference=_reference(r, data) if "reference" in data else None)
     if policy == "fixed_block":   # blocks the trains can move in (more than the trains on a loop)

@@ -131,6 +131,26 @@ def number(minimum: float = None, above: float = None, maximum: float = None, ex
     return parse
 
 
+def track_spans(text):
+    """`all`, or stretches of track `FROM-TO[,FROM-TO...]` in metres along it (FROM >= 0, TO >= 0): a list of
+    (from_m, to_m), or "all"."""
+    if text.strip().lower() == "all":
+        return "all"
+    spans = []
+    for part in text.split(","):
+        low, sep, high = part.strip().partition("-")
+        try:
+            from_m, to_m = float(low), float(high)
+        except ValueError:
+            from_m = to_m = None
+        if not sep or from_m is None or not (math.isfinite(from_m) and math.isfinite(to_m)) or from_m < 0.0 \
+                or to_m < 0.0 or from_m == to_m:
+            raise argparse.ArgumentTypeError(f"{part.strip()!r} is not a stretch of track; give all, or FROM-TO in "
+                                             f"metres along the track (e.g. 0-2.5,3.1-6), FROM and TO different")
+        spans.append((from_m, to_m))
+    return spans
+
+
 def input_file(text):
     """A file to read: it must exist now."""
     if not os.path.isfile(text):

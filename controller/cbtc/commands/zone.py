@@ -45,6 +45,10 @@ def register(sub):
     p.add_argument("--report-budget-hz", type=arg_types.number(above=0.0, example="400"), default=400.0, metavar="HZ",
                    help="reports a second this machine can answer (default 400: 20 trains at 20 Hz on two cores, "
                         "cbtc bench latency); followed trains are asked for 50 Hz reports within it")
+    p.add_argument("--clear-track", type=arg_types.track_spans, default=None, metavar="all|FROM-TO,...",
+                   help="you have looked at the table: no vehicle but this zone's trains stands on the whole track "
+                        "(all) or on these stretches (metres along it); track neither cleared nor swept by a located "
+                        "train is occupied, and no authority reaches into it (default: none cleared)")
     p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
                    help="the controller's figures, rewritten at every status period and at exit")
     p.add_argument("--record", type=arg_types.output_file, default=None, metavar="FILE",
@@ -66,6 +70,7 @@ def run(args):
     layout = config.layout
     config.policy = args.policy or config.policy
     config.estimator = args.estimator or config.estimator
+    _check_spans(args.clear_track, layout)
     username, password = credentials("zc", args.username, args.password, args.credentials)
     loop = LiveLoop()
     bus = start_bus(args.mqtt_client, args.broker, f"zc-{args.zone_id}", loop.net,
@@ -74,6 +79,8 @@ def run(args):
                     report_budget_hz=args.report_budget_hz)
     zc.key_source = f"keys file {args.keys}" if args.keys else \
         f"--sim-seed {args.sim_seed} (the keys cbtc trains derives from that seed)"
+    if args.clear_track is not None:
+        zc.clear_track(None if args.clear_track == "all" else args.clear_track, by="the operator (--clear-track)")
     recording = None
     if args.record:
         recording = zc.report_sink = ReportRecording(args.record)
@@ -102,6 +109,16 @@ def run(args):
         write_json(args.summary_json, summary)
     print(f"zone {args.zone_id}: stopped every train and went offline after {summary['cycles']} cycles", flush=True)
     return 0
+
+
+def _check_spans(spans, layout):
+    """--clear-track's stretches lie on `layout` (ConfigError naming the stretch and the track's length)."""
+    from cbtc.errors import ConfigError
+    for from_m, to_m in spans if isinstance(spans, list) else ():
+        if max(from_m, to_m) > layout.length_m or (not layout.closed and to_m < from_m):
+            raise ConfigError(f"--clear-track {from_m:g}-{to_m:g}: not on layout {layout.name}, whose track runs "
+                              f"from 0 to {layout.length_m:.2f} m" + ("" if layout.closed else
+                                                                     " forward (FROM below TO)"))
 
 
 def _status(zc, bus, loop, args, now_s):

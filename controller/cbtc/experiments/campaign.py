@@ -71,6 +71,7 @@ CAMPAIGN_RANGES = {
     "tag_moved": {"distance_m": LogSigned((0.005, 0.2))},
     "unknown_board": {"distance_m": (0.3, 4.0)},
     "duplicate_board": {"distance_m": (0.3, 4.0)},
+    "unseen_train": {"duration_s": (0.5, 5.0), "distance_m": (0.3, 4.0)},
 }
 # per-class figures: counted over the runs (sums), or their worst, or their mean
 _SUMS = ("collisions", "authority_overruns", "rolled_onto", "emergency_trips", "encoder_trips", "stranded")

@@ -270,6 +270,7 @@ def _campaign(payloads, seed, url, progress, buses, client):
     stranger = PahoBus(url, "stranger").start()   # paho's own thread: it throws while the loop runs
     buses.append(stranger)
     zc = build_zone(config, keys, zc_bus, loop.now_s, zone_id="fuzz", seed=seed)
+    zc.clear_track(None, by="the fuzz run, from its truth,")   # its trains alone stand on the track
     watch = Watch(zc, trains)
     traffic.skip = watch.classes
     zc.start()

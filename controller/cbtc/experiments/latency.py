@@ -268,6 +268,7 @@ def _measure(args, layout, config, url):
     report_pub, cmd_recv, moving = {}, {}, 0
     try:
         zc = build_zone(config, keys, probe.wrap(zc_bus), loop.now_s, zone_id="bench", seed=args.seed)
+        zc.clear_track(None, by="the bench, from its truth,")   # its trains alone stand on the track
         zc.start()
         for here in pipes:
             ready = here.recv() if here.poll(30.0) else "no answer within 30 s"

@@ -177,6 +177,7 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
     now = [0.0]
     client = _NullClient()
     zc = build_zone(config, keys, client, lambda: now[0], seed=config.seed)   # the run's session: reports answer it
+    zc.clear_track(None, by="the replayed run, from its truth,")   # its trains alone stand on the track
     zc.start()
     logger = logging.getLogger("cbtc")
     level = logger.level

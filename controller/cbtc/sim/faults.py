@@ -90,6 +90,10 @@ FAULTS = {
     "duplicate_board": ("a spare board flashed with the train's id and key is put on the track, standing, this far "
                         "ahead of the train's head (as unknown_board), and reports from then on",
                         {"train": "", "at_s": 20.0, "distance_m": 1.0}),
+    "unseen_train": ("while the zone controller is down (it crashes at at_s, a new one starts duration_s later), a "
+                     "train with no working board is put on the track, standing, this far ahead of the train's head "
+                     "(as unknown_board): nothing of it reaches the new zone",
+                     {"train": "", "at_s": 20.0, "duration_s": 3.0, "distance_m": 1.0}),
     "tag_moved": ("the first tag ahead of the train at at_s lies this far from where the layout (and its telegram) "
                   "says (negative: back; knocked or laid by hand; as far as its neighbours and the track's origin "
                   "leave room, less 1 cm), for the rest of the run",
@@ -97,7 +101,7 @@ FAULTS = {
 }
 _DIRECTIONS = ("up", "down", "both")
 _SIGNED = {("odometer_jump", "distance_m"), ("boot_moved", "distance_m"), ("unknown_board", "distance_m"),
-           ("duplicate_board", "distance_m"),
+           ("duplicate_board", "distance_m"), ("unseen_train", "distance_m"),
            ("tag_moved", "distance_m")}   # parameters that may be negative
 _WORDS = {int: "a whole number", float: "a number", str: "text"}
 
@@ -379,10 +383,23 @@ def _duplicate_board(sim, train, p):
     sim.scheduler.call_at(p["at_s"], _put_stray, sim, train, p["distance_m"], train.train_id, train._key)
 
 
+def _unseen_train(sim, train, p):
+    from cbtc.zone.config import train_key
+
+    def put():
+        stray = _put_stray(sim, train, p["distance_m"], "U" + train.train_id,
+                           train_key(sim.config.seed + 2, "U" + train.train_id))
+        if stray is not None:
+            stray.frozen = stray.stopped_dead = True   # no working board: it neither moves nor reports
+    sim.scheduler.call_at(p["at_s"], sim.crash_zone)
+    sim.scheduler.call_at(p["at_s"] + 0.5 * p["duration_s"], put)
+    sim.scheduler.call_at(p["at_s"] + p["duration_s"], sim.restart_zone)
+
+
 def _put_stray(sim, train, distance_m, train_id, key):
     """A standing board `distance_m` ahead of `train`'s head, where it fits clear of every train (0.2 m from their
     tails and from the end of authority of the one behind); in the largest free stretch when it does not; nowhere
-    when no stretch has room."""
+    (None) when no stretch has room."""
     layout = sim.config.layout
     profile = train.profile
     clear_m = 0.2
@@ -402,11 +419,11 @@ def _put_stray(sim, train, distance_m, train_id, key):
     for start_s, length_m in stretches:
         into_m = layout.ahead_m(start_s, wanted_s)
         if length_m >= need_m and profile.length_m + clear_m <= into_m <= length_m - clear_m:
-            sim.add_stray(train_id, key, wanted_s, profile)
-            return
+            return sim.add_stray(train_id, key, wanted_s, profile)
     start_s, length_m = max(stretches, key=lambda st: st[1])
     if length_m >= need_m:
-        sim.add_stray(train_id, key, layout.wrap(start_s + 0.5 * (length_m + profile.length_m)), profile)
+        return sim.add_stray(train_id, key, layout.wrap(start_s + 0.5 * (length_m + profile.length_m)), profile)
+    return None
 
 
 def _tag_moved(sim, train, p):
@@ -422,6 +439,7 @@ def _tag_moved(sim, train, p):
 _SCHEDULE = {"controller_restart": _controller_restart,
              "ips_bias": _ips_bias, "encoder_drift": _encoder_drift, "boot_moved": _boot_moved,
              "tag_moved": _tag_moved, "unknown_board": _unknown_board, "duplicate_board": _duplicate_board,
+             "unseen_train": _unseen_train,
              "stop_dead": _stop_dead, "reboot": _reboot, "link_loss": _link_loss, "link_delay": _link_delay,
              "broker_outage": _broker_outage, "encoder_burst": _encoder_burst,
              "odometer_jump": _odometer_jump, "encoder_stuck": _encoder_stuck,

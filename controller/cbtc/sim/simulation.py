@@ -17,6 +17,7 @@ from cbtc.sim.tail_beacons import TailBeacons
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import ScenarioConfig, train_key
 from cbtc.zone.factory import build_zone
+from cbtc.zone.swept import SweptTrack
 
 FIRST_CYCLE_S = 0.05   # the zone's first cycle: once the boards have had a loop or two to report
 DECLARED_TOL_M = 0.02  # how close to its declared start an operator puts a train's head: on a mark (declare_start)
@@ -58,6 +59,7 @@ class Simulation:
         if config.policy == "fixed_block":
             self._check_not_gridlocked()
         self.recorder = Recorder(self, keep_reports, keep_samples)
+        self._clear_track()
         self.zc.start()
         for train in self.trains:
             train.client.publish(wire.topic_status(train.train_id), b"online", retain=True)
@@ -105,8 +107,30 @@ class Simulation:
                              seed=self.config.seed + 1000 * self.zone_restarts)
         self.policy = self.zc.policy
         self.zc.report_sink = self.report_sink
+        self._clear_track()
         self.zc.start()
         self._cycle = self.scheduler.call_every(self.config.cycle_s, self.zc.cycle)
+
+    def _clear_track(self):
+        """As an operator who has looked at the table (ScenarioConfig.clear_track "truth"): the zone is told that the
+        track is clear but where a vehicle that is none of its trains stands (a stray board, a car come off)."""
+        if self.config.clear_track != "truth":
+            return
+        layout = self.config.layout
+        if not self.strays:
+            self.zc.clear_track(None, by="the simulation, from its truth,")
+            return
+        occupied = SweptTrack(layout)   # the union of the strays' extents
+        for stray in self.strays:
+            tail_s = stray.tail_s
+            occupied.clear(tail_s, tail_s + layout.ahead_m(tail_s, stray.head_s) if layout.closed else stray.head_s)
+        spans = occupied.spans
+        clear = [(spans[i][1], spans[i + 1][0]) for i in range(len(spans) - 1)]
+        if layout.closed:
+            clear.append((spans[-1][1], spans[0][0]))
+        else:
+            clear = [(0.0, spans[0][0])] + clear + [(spans[-1][1], layout.length_m)]
+        self.zc.clear_track([(a, b) for a, b in clear if a != b], by="the simulation, from its truth,")
 
     def wrap_zone(self, wrap):
         """Run the zone's report handling and cycles through `wrap(fn)` (cbtc bench sim clocks each call). Before

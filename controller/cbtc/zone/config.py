@@ -50,6 +50,9 @@ class ScenarioConfig:
     declare_start: bool = True       # the zone is told where each train starts (from the simulation's truth), as an
     #                                  operator declares at the start of a run: a placement that agrees with it is
     #                                  confirmed; a zone restarted later has no declaration and waits for balises
+    clear_track: str = "truth"       # "truth": the simulation clears every stretch no vehicle stands on, at the start
+    #                                  and after each zone restart, as an operator who has looked at the table would;
+    #                                  "none": nothing is cleared, and no authority reaches into unswept track
 
 
 def train_key(seed: int, train_id: str) -> bytes:

@@ -13,7 +13,7 @@ cdef class TrainState:
     cdef public object stop_overruns, restarts, answered_s, fast_until_s, fast_need_m, leader_data_t_s
     cdef public object sigma_m, authority, mode, rng_gap, gap_alarm, gap_alarms
     cdef public object deaf_since_s, encoder_failed, encoder_failures, odometer_jumps, measurements_dropped, failures
-    cdef public object failures_said, reports_taken, reach_m, horizon_m, tail, track_m, doubt_span, _memo
+    cdef public object failures_said, reports_taken, reach_m, horizon_m, tail, track_m, doubt_span, swept_from_m, _memo
 
 cdef class ZoneController:
     cdef dict __dict__
@@ -24,7 +24,7 @@ cdef class ZoneController:
     cdef public object event_driven, zone_id, _rng, session_id, _estimator_factory, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
     cdef public object use_measured_gap, on_command, report_sink, fast_slots, obstacles, _balises
-    cdef public object _stranger_length_m, _stranger_v_mps, _parted
+    cdef public object _stranger_length_m, _stranger_v_mps, _parted, swept
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)

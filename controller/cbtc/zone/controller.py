@@ -44,6 +44,7 @@ from cbtc.zone import plausibility
 from cbtc.zone.boots import TWIN_ALIVE_S, BootTracker
 from cbtc.zone.obstacles import Obstacle, room_m
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
+from cbtc.zone.swept import SweptTrack
 from cbtc.zone.tails import TailWatch
 
 log = logging.getLogger("cbtc.zone")
@@ -124,6 +125,8 @@ class TrainState:
         self.horizon_m = None
         self.tail = None             # its tail beacon's TailWatch, from the beacon's first fix (None: none heard)
         self.track_m = None          # the track's length, set by the zone: how far back an unvouched tail may be
+        self.swept_from_m = None     # the front-most place of its tail at its previous located report: the track its
+        #                              body has certainly passed over since starts there (the zone's SweptTrack)
         self.doubt_span = None       # (low, high) track positions of its head when its encoder failed: handed to each
         #                              estimator started afresh until one is located (UkfEstimator.keep_doubt)
         # what the zone asks of this train per report (its estimate, picture, scale bounds): they change only with a
@@ -179,6 +182,7 @@ class TrainState:
         """Forget where the train is and its odometer's frame: it gets no authority until `estimator` locates it."""
         self.estimator = estimator
         self._memo = {}
+        self.swept_from_m = None
         self.eoa_mm = None
         self.limit_s = None
         if self.on_change is not None:
@@ -243,6 +247,7 @@ class ZoneController:
         self.invalid_reports = 0
         self.obstacles = {}           # name -> Obstacle: on the track, and no train of the zone (cbtc.zone.obstacles)
         self._parted = set()          # trains whose train line opened: their car's place is an obstacle
+        self.swept = SweptTrack(layout)   # the track vouched for; the rest is occupied (cbtc.zone.swept)
         self._balises = BaliseReader(layout)   # where an obstacle's tag reads put it
         profiles = [st.setup.profile for st in self.trains.values()]
         self._stranger_length_m = max(p.length_m for p in profiles)   # an unknown train is as long as the longest,
@@ -266,6 +271,9 @@ class ZoneController:
 
     def start(self):
         """Subscribe to reports and announce the controller (retained)."""
+        if not self.swept.spans:
+            log.warning("the track is not cleared: no authority reaches track no located train has swept; once only "
+                        "this zone's trains stand on it, say so (cbtc zone --clear-track all, or FROM-TO stretches)")
         self.client.subscribe(wire.REPORT_FILTER, self.on_report)
         self.client.publish(wire.topic_zone_status(self.zone_id), b"online", retain=True)
 
@@ -280,6 +288,20 @@ class ZoneController:
             raise ConfigError(f"declared position of {train_id}: {s_m} m within {tol_m} m is not a track position "
                               f"and a tolerance >= 0")
         state.estimator.declare_position(s_m, tol_m)
+
+    def clear_track(self, spans=None, by: str = "an operator") -> None:
+        """`by` vouches that no vehicle but the zone's trains stands on `spans` ((from_m, to_m) track positions, each
+        forward from `from_m`; None: the whole track). Track neither cleared nor swept by a located train is occupied:
+        no authority reaches into it."""
+        if spans is None:
+            self.swept.clear_all()
+            log.info("%s cleared the whole track", by)
+            return
+        for from_m, to_m in spans:
+            if not (isfinite(from_m) and isfinite(to_m)):
+                raise ConfigError(f"track cleared by {by}: {from_m}-{to_m} m is not a stretch of track")
+            self.swept.clear(from_m, to_m if to_m > from_m or not self.layout.closed else to_m + self.layout.length_m)
+        log.info("%s cleared %s of the track", by, ", ".join(f"{a:.2f}-{b:.2f} m" for a, b in spans) or "none")
 
     def on_report(self, topic, payload):
         """Take one report. Whatever it holds, nothing escapes: a refusal is counted and logged at a bounded rate
@@ -482,12 +504,44 @@ class ZoneController:
             state.still_since_s = state.report_t_s
         state.took_report()
         self._moved.add(state)
+        if not self.swept.complete and state.estimator.localized:
+            self._sweep(state)
         if self.report_sink is not None:
             self._record(state, report, recv_s)
         if report.get("rng") is not None:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
             self._answer(state, recv_s)
+
+    def _sweep(self, state):
+        """Vouch for the track `state`'s train has certainly covered since its previous located report: from the
+        front-most place its tail could have been then to the rear-most place its head can be now. Only a confirmed
+        train sweeps (an unconfirmed one may be a lasting bias off), and not one whose train line opened (its tail car
+        may be gone); one configured longer than it is would vouch for track behind its real tail."""
+        est = state.newest_estimate()
+        if est is None or not state.estimator.confirmed or "split" in state.report["flt"]:
+            state.swept_from_m = None
+            return
+        k_m = self.params.k_sigma * est.sigma_s_m
+        head_low_m = est.s_m - est.behind_m - k_m
+        tail_high_m = est.s_m + est.ahead_m + k_m - state.setup.profile.length_m
+        from_m = tail_high_m if state.swept_from_m is None else state.swept_from_m
+        covered_m = head_low_m - from_m
+        if self.layout.closed:   # the short way round: a train covers far less than a loop between two reports
+            covered_m = (covered_m + 0.5 * self.layout.length_m) % self.layout.length_m - 0.5 * self.layout.length_m
+        if covered_m > 0.0:
+            self.swept.clear(from_m, from_m + covered_m)
+        state.swept_from_m = tail_high_m
+
+    def _clear_of_unknown(self, state, auth):
+        """`auth` cut short of the first track ahead of `state`'s front-most head that is neither cleared nor swept
+        (its margin off)."""
+        est = state.newest_estimate()
+        front_s = self.layout.wrap(est.s_m + est.ahead_m + self.params.k_sigma * est.sigma_s_m)
+        distance_m = self.swept.known_ahead_m(front_s) - self.params.margin_m
+        if distance_m < auth.distance_m:
+            auth = auth.cut_to(max(0.0, distance_m), "track not swept or cleared ahead")
+        return auth
 
     def _relocate_wheel_lost(self, state):
         """Start the train's estimator afresh (its odometer is lost). When its sensors disagreed just before (an IPS
@@ -629,6 +683,8 @@ class ZoneController:
                 block_i, code = self.policy.code(sit)
                 sit = replace(sit, received_code=self.policy.codes.transmit(block_i, code))
             auth = self._clear_of_obstacles(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
+            if not self.swept.complete:
+                auth = self._clear_of_unknown(state, auth)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
             stop_m = self._station_stop(state, now_s)
