@@ -64,7 +64,7 @@ def _options(parser=None, prefix=()):
 # free text by nature (names, passwords, addresses), or lists each command checks itself before any work
 FREE_TEXT = {"--username", "--password", "--host", "--run-as", "--zone-id", "--wifi-ssid", "--wifi-password",
              "--key", "--port", "--train", "--fault", "--scheduler", "--layouts", "--report-ms", "--follow-mps",
-             "--blocks", "--trains", "--broker", "--points"}
+             "--blocks", "--trains", "--broker", "--points", "--ips-modem"}
 NUMERIC = {"whole number", "seed", "train count", "number", "seconds"}
 
 

@@ -151,6 +151,12 @@ def track_spans(text):
     return spans
 
 
+def tail_beacons(text):
+    """`TRAIN=ADDRESS,...`: {beacon address: train id} (cbtc.live.ips_modem.parse_tail_beacons)."""
+    from cbtc.live.ips_modem import parse_tail_beacons
+    return _checked(parse_tail_beacons, text)
+
+
 def input_file(text):
     """A file to read: it must exist now."""
     if not os.path.isfile(text):

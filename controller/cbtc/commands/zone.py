@@ -49,6 +49,12 @@ def register(sub):
                    help="you have looked at the table: no vehicle but this zone's trains stands on the whole track "
                         "(all) or on these stretches (metres along it); track neither cleared nor swept by a located "
                         "train is occupied, and no authority reaches into it (default: none cleared)")
+    p.add_argument("--ips-modem", default=None, metavar="PORT",
+                   help="the IPS modem's serial port (e.g. /dev/ttyACM0): the fixes of each train's tail beacon check "
+                        "its configured length (with --tail-beacons)")
+    p.add_argument("--tail-beacons", type=arg_types.tail_beacons, default=None, metavar="TRAIN=ADDRESS,...",
+                   help="the beacon on each train's last car, by its address (e.g. A=5,B=6); those trains' tails are "
+                        "not vouched for until their beacon is heard")
     p.add_argument("--summary-json", type=arg_types.output_file, default=None, metavar="FILE",
                    help="the controller's figures, rewritten at every status period and at exit")
     p.add_argument("--record", type=arg_types.output_file, default=None, metavar="FILE",
@@ -71,12 +77,22 @@ def run(args):
     config.policy = args.policy or config.policy
     config.estimator = args.estimator or config.estimator
     _check_spans(args.clear_track, layout)
+    beacons = _tail_beacons(args, config)
     username, password = credentials("zc", args.username, args.password, args.credentials)
     loop = LiveLoop()
+    modem = None
+    if beacons:   # the port opened before any connection: a wrong one is said at once
+        from cbtc.live.ips_modem import IpsModem
+        latency_s = max(spec.profile.ips_latency_s for spec in config.trains)
+        modem = IpsModem.open(args.ips_modem, beacons, None, loop.now_s, latency_s)
     bus = start_bus(args.mqtt_client, args.broker, f"zc-{args.zone_id}", loop.net,
                     status_topic=wire.topic_zone_status(args.zone_id), username=username, password=password)
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
+    if modem is not None:
+        from cbtc.live.ips_modem import POLL_S
+        modem.zone = zc
+        loop.scheduler.call_every(POLL_S, modem.poll, start_s=loop.now_s() + POLL_S)
     zc.key_source = f"keys file {args.keys}" if args.keys else \
         f"--sim-seed {args.sim_seed} (the keys cbtc trains derives from that seed)"
     if args.clear_track is not None:
@@ -101,6 +117,8 @@ def run(args):
     zc.stop_all(loop.now_s())
     loop.pause(STOP_GRACE_S)
     bus.disconnect()
+    if modem is not None:
+        modem.close()
     summary = _summary(zc, bus, loop)
     if recording is not None:
         recording.close()
@@ -109,6 +127,29 @@ def run(args):
         write_json(args.summary_json, summary)
     print(f"zone {args.zone_id}: stopped every train and went offline after {summary['cycles']} cycles", flush=True)
     return 0
+
+
+def _tail_beacons(args, config):
+    """--ips-modem and --tail-beacons, checked together and against the fleet: {address: train id} ({} without
+    them); the trains given a beacon get `tail_beacon` in their profile (unvouched tails until heard)."""
+    from dataclasses import replace
+
+    from cbtc.errors import ConfigError
+    if (args.ips_modem is None) != (args.tail_beacons is None):
+        raise ConfigError("--ips-modem and --tail-beacons go together: give the modem's port and which beacon rides "
+                          "on which train's last car (e.g. --ips-modem /dev/ttyACM0 --tail-beacons A=5)")
+    if args.ips_modem is None:
+        return {}
+    beacons = args.tail_beacons
+    ids = [spec.train_id for spec in config.trains]
+    unknown = sorted(set(beacons.values()) - set(ids))
+    if unknown:
+        raise ConfigError(f"--tail-beacons: train {', '.join(unknown)} is not in this zone; its trains: "
+                          f"{', '.join(ids)}")
+    fitted = set(beacons.values())
+    config.trains = [replace(spec, profile=spec.profile.with_changes(tail_beacon=1)) if spec.train_id in fitted
+                     else spec for spec in config.trains]
+    return beacons
 
 
 def _check_spans(spans, layout):
