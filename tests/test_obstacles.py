@@ -104,3 +104,16 @@ def test_a_board_the_zone_cannot_command_is_kept_as_an_obstacle_and_named(layout
         train_id = fault.split("train=")[1].split(",")[0]
         assert any(f"two boards report as train {train_id}" in r.getMessage() for r in caplog.records)
         assert sim.zc.trains[train_id].limited_by == f"held: two boards report as {train_id}"
+
+
+def test_a_board_put_down_while_the_broker_is_down_connects_once_it_is_back():
+    """A 2000-run campaign raised on this overlapping run (seed 1912): the spare board could not connect to a broker
+    that was down."""
+    from cbtc.sim import faults
+    from cbtc.zone.config import queue_scenario
+    config = queue_scenario(load_layout("lego_oval"), 5, seed=1912, duration_s=40.0, faults=tuple(
+        faults.parse(text) for text in ("broker_outage:at_s=29.1,duration_s=3.238",
+                                        "duplicate_board:at_s=30.6,distance_m=0.799,train=T3")))
+    sim = Simulation(config)
+    summary = sim.run().summary()
+    assert sim.strays and sim.strays[0].client.connected and not violations(summary)

@@ -153,9 +153,10 @@ class MockBroker:
     # --- connections ---------------------------------------------------------------------------------------------
 
     def connect(self, client_id, will=None, up=None, down=None, keepalive_s=None) -> MockClient:
-        """A connected client. `will` = (topic, payload bytes, retain). An existing session with this id is taken over
-        (closed without its will). With `keepalive_s` the client pings over its up link every `keepalive_s` and the
-        broker declares it dead (publishing its will) after 1.5 * keepalive_s without hearing from it."""
+        """A client, connected unless the broker is down. `will` = (topic, payload bytes, retain). An existing session
+        with this id is taken over (closed without its will). With `keepalive_s` the client pings over its up link
+        every `keepalive_s` and the broker declares it dead (publishing its will) after 1.5 * keepalive_s without
+        hearing from it."""
         if will is not None:
             if not (isinstance(will, tuple) and len(will) == 3):
                 raise ValueError(f"client {client_id!r}: will must be (topic, payload bytes, retain), got {will!r}")
@@ -164,10 +165,9 @@ class MockBroker:
                 raise TypeError(f"client {client_id!r}: will payload on {will[0]} must be bytes")
         if keepalive_s is not None and keepalive_s <= 0:
             raise ValueError(f"client {client_id!r}: keepalive_s must be > 0 or None, got {keepalive_s}")
-        if not self.running:
-            raise BusError(f"client {client_id!r}: the broker is down; connect after start()")
         client = MockClient(self, client_id, will, up, down, keepalive_s)
-        self._attach(client)
+        if self.running:   # while the broker is down the client is made unconnected: reconnect() once it is up
+            self._attach(client)
         return client
 
     def _attach(self, client):

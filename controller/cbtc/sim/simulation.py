@@ -147,8 +147,8 @@ class Simulation:
         self._cycle.cancel()
 
     def clients(self):
-        """Every client of the mock broker in this run: the zone's, the trains', the recorder's."""
-        return [self.zc_client] + [t.client for t in self.trains] + [self.recorder._sniffer]
+        """Every client of the mock broker in this run: the zone's, the trains', the strays', the recorder's."""
+        return [self.zc_client] + [t.client for t in self.trains + self.strays] + [self.recorder._sniffer]
 
     def _check_not_gridlocked(self):
         """Fixed blocks on a loop: if every train starts within the margin of an occupied block ahead, none can ever
