@@ -61,6 +61,52 @@ def test_the_parser_gives_back_every_packet_whatever_chunks_the_bytes_come_in(me
     assert got == [(t, p, q) for t, p, q in messages] and not buffer
 
 
+def _packet(kind, flags, body):
+    return bytes((kind | flags,)) + mp._remaining(len(body)) + body
+
+
+_HOSTILE = st.one_of(
+    st.binary(max_size=80),                                                     # line noise
+    st.builds(_packet, st.sampled_from([mp.CONNACK, mp.PUBLISH, mp.PUBACK, mp.SUBACK, mp.UNSUBACK, mp.PINGRESP,
+                                        0x00, 0x50, 0x60, 0x70, 0xF0]),
+              st.integers(0, 15), st.binary(max_size=60)),                      # any type, flags and body
+    st.builds(lambda topic_len, rest, qos: _packet(mp.PUBLISH, qos << 1, topic_len.to_bytes(2, "big") + rest),
+              st.integers(0, 0xFFFF), st.binary(max_size=40), st.integers(0, 3)),   # a topic length that lies
+    st.just(b"\x30\xff\xff\xff\x7f"),                                            # the largest length stated
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(chunks=st.lists(_HOSTILE, min_size=1, max_size=12))
+def test_hostile_broker_bytes_end_at_most_the_connection_and_never_raise_past_the_client(chunks):
+    """Whatever a broker (or whatever answers on its port) sends: the client takes the packets it can, hands only
+    whole, well-formed PUBLISHes to its subscriber, and on bytes that are no MQTT closes the connection to open it
+    again; no exception leaves `net_read`."""
+    bus = LeanBus("mqtt://127.0.0.1:1", "fuzzed", net=NetLoop())
+    near, far = socket.socketpair()
+    near.setblocking(False)
+    bus._sock, bus._connected, bus.connects = near, True, 1   # connected once already: a loss is retried
+    got = []
+    bus.subscribe("#", lambda topic, payload: got.append((topic, payload)))
+    try:
+        for chunk in chunks:
+            far.sendall(chunk)
+            bus.net_read()
+            if bus._sock is None:   # a protocol error: the connection is closed, to be opened again
+                assert bus._retry_due_s is not None and not bus._connected
+                break
+        assert all(isinstance(t, str) and isinstance(p, bytes) for t, p in got)
+    finally:
+        far.close()
+        if bus._sock is not None:
+            bus._sock.close()
+
+
+def test_a_publish_whose_topic_length_runs_past_its_packet_is_refused():
+    with pytest.raises(mp.ProtocolError, match="topic longer than its packet"):
+        mp.parse_publish(0x30, b"\x00\x09abc")
+
+
 @pytest.mark.mosquitto
 def test_lean_and_paho_clients_talk_both_ways_and_the_answer_leaves_in_the_poll_that_read_the_message(mosquitto):
     threads_before = threading.active_count()

@@ -122,6 +122,8 @@ def parse_publish(first: int, body: bytes):
         raise ProtocolError("malformed PUBLISH")
     n = (body[0] << 8) | body[1]
     k = 2 + n
+    if k > len(body):
+        raise ProtocolError("PUBLISH topic longer than its packet")
     try:
         topic = body[2:k].decode()
     except UnicodeDecodeError:
