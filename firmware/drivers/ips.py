@@ -96,11 +96,6 @@ class IpsReceiver:
             return -2
         return end + 2
 
-    def _position(self, buf, at, now_ms):
-        """The fix of the position payload at buf[at:]: (now_ms, x_mm, y_mm, z_mm, flags)."""
-        _ts, x_mm, y_mm, z_mm, flags = struct.unpack_from("<IiiiB", buf, at)
-        return (now_ms, x_mm, y_mm, z_mm, flags)
-
     def _parse(self, now_ms):
         buf = self.buf
         n = self._len
@@ -127,7 +122,8 @@ class IpsReceiver:
                 continue
             code = buf[i + 2] | (buf[i + 3] << 8)
             if code == _CODE_POS_MM:
-                fix = self._position(buf, i + _HEADER, now_ms)
+                _ts, x_mm, y_mm, z_mm, flags = struct.unpack_from("<IiiiB", buf, i + _HEADER)
+                fix = (now_ms, x_mm, y_mm, z_mm, flags)
                 self.frames_ok += 1
             else:
                 self.other_frames += 1

@@ -9,23 +9,51 @@ POLL_S by the live loop.
 import struct
 
 from cbtc.errors import ConfigError
-from cbtc.firmware.drivers.ips import IpsReceiver
+from cbtc.firmware.drivers.ips import _CODE_POS_MM, _HEADER, IpsReceiver
 
 POLL_S = 0.01      # how often the port is read: well within the beacons' period (16 Hz at most)
 BAUD = 115200      # the modem's USB serial rate
 
 
 class _BeaconFixes(IpsReceiver):
-    """The hedgehog parser keeping every fix with its beacon's address, not only the newest."""
+    """The hedgehog parser keeping every fix with its beacon's address, not only the newest. Its loop is the board's
+    (`IpsReceiver._parse`) written again: a hook for the address in the board's parser costs 320 B of the board's
+    heap (tests/test_heap32.py, loop peak), and the board has none to spare."""
 
     def __init__(self, uart):
         super().__init__(uart)
         self.fixes = []   # (address, x_mm, y_mm) parsed since the caller last emptied it
 
-    def _position(self, buf, at, now_ms):
-        _ts, x_mm, y_mm, z_mm, flags, address = struct.unpack_from("<IiiiBB", buf, at)
-        self.fixes.append((address, x_mm, y_mm))
-        return (now_ms, x_mm, y_mm, z_mm, flags)
+    def _parse(self, now_ms):
+        buf, n, i, fix = self.buf, self._len, 0, None
+        while i < n:
+            end = self._frame_end(i, n)
+            if end == 0:   # incomplete: skip to a whole good frame further on, or wait for more
+                j = i + 1
+                while j < n and self._frame_end(j, n) <= 0:
+                    j += 1
+                if j == n:
+                    break
+                self.garbage_bytes += j - i
+                i = j
+                continue
+            if end < 0:
+                self.crc_errors += end == -2
+                self.garbage_bytes += 1
+                i += 1
+                continue
+            if buf[i + 2] | (buf[i + 3] << 8) == _CODE_POS_MM:
+                _ts, x_mm, y_mm, z_mm, flags, address = struct.unpack_from("<IiiiBB", buf, i + _HEADER)
+                self.fixes.append((address, x_mm, y_mm))
+                fix = (now_ms, x_mm, y_mm, z_mm, flags)
+                self.frames_ok += 1
+            else:
+                self.other_frames += 1
+            i = end
+        if i:
+            buf[0:n - i] = buf[i:n]
+            self._len = n - i
+        return fix
 
 
 class _SerialUart:
