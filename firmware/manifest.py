@@ -18,7 +18,7 @@ TRAIN = (
 
 # MicroPython-compatible modules that only the controller imports (the zone's half of the protocol, balise
 # telegrams); the host tests run them under the MicroPython unix port too. They go onto no train board.
-SHARED = ("wire_zc.py", "telegram.py")
+SHARED = ("messages.py", "wire_zc.py", "telegram.py")
 
 ROLES = {"train": TRAIN}
 

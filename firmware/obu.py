@@ -98,8 +98,10 @@ class OnboardUnit:
     reverse = False          # the train ran backwards while driven (a motor wired reversed): braked until a reboot
     integrity = None         # the train line's pin where a loop is fitted: it reads 1 once the loop is open
     split = False            # the train line opened (a car came off): braked until a reboot
+    _codec = wire            # decodes commands and encodes reports: wire, or the controller's codec of the same bytes
 
-    def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None):
+    def __init__(self, train_id, key, boot_id, encoder, ips, rfid, motor, publish, config=None, ranging=None,
+                 codec=None):
         self.train_id = wire.check_train_id(train_id)
         self.boot_id = boot_id   # random at each boot (assemble.new_boot_id); every command must name it
         self._key = key
@@ -109,6 +111,8 @@ class OnboardUnit:
         self.motor = motor
         if ranging is not None:
             self.ranging = ranging
+        if codec is not None:
+            self._codec = codec
         self._publish = publish
         cfg = DEFAULTS   # read-only here: shared as it is when nothing is overridden (a board's heap is small)
         if config:
@@ -180,7 +184,7 @@ class OnboardUnit:
         if topic != self._cmd_topic:
             return
         try:
-            cmd = wire.decode_command(self._key, topic, payload)
+            cmd = self._codec.decode_command(self._key, topic, payload)
             if cmd["boot"] != self.boot_id:
                 raise wire.WireError("command of boot %d; this is boot %d (recorded before a restart?)"
                                      % (cmd["boot"], self.boot_id))
@@ -614,9 +618,9 @@ class OnboardUnit:
         slot = seq % _HISTORY
         self._sent_seq[slot] = seq
         self._sent_t[slot] = now_ms
-        payload = wire.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm, self.v_mmps,
-                                     duty_pct, self.mode, self.cseq, self.sid, self._ips_fix,
-                                     self._tags, self.faults, self._rng_report)
+        payload = self._codec.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm,
+                                            self.v_mmps, duty_pct, self.mode, self.cseq, self.sid, self._ips_fix,
+                                            self._tags, self.faults, self._rng_report)
         self.seq = wrap_add(seq, 1)
         self._ips_fix = None
         if self._rng_report is not None:

@@ -5,8 +5,7 @@ MicroPython-compatible (runs on the ESP8266 and under CPython). Messages are com
 checked over the bytes exactly as received, so key order and number formatting never matter. See docs/protocol.md.
 
 This module is what a board needs. The zone controller's half (report decoding, command encoding, zone topics, the
-mode and fault names) is wire_zc.py, reached through this module's attributes too (`wire.decode_report`): a board
-never loads it.
+mode and fault names) is wire_zc.py, and every message's fields are declared in messages.py: a board loads neither.
 
 Topics (train id `T`, zone `Z`):
   cbtc/train/T/report   board -> controller, 20 Hz, QoS 0
@@ -115,7 +114,7 @@ def wrap_add(a, b):
 # --- authentication -------------------------------------------------------------------------------------------
 
 try:
-    from hmac import digest as _C_HMAC  # CPython: C's (the controller sets a faster one: cbtc.protocol); no board
+    from hmac import digest as _C_HMAC  # CPython: C's; no board has it
 except ImportError:
     _C_HMAC = None
 
@@ -172,10 +171,11 @@ def check_ints(values, specs, topic, field=None):
                             % (name if field is None else (field, name), topic, specs[i + 1], specs[i + 2], value))
 
 
-def decode_sealed(key, topic, payload, kind, specs):
+def decode_sealed(key, topic, payload, kind, specs, sealer=seal, loads=json.loads):
     """The validated message dict of a sealed payload of `kind` ("rep" or "cmd") on `topic`: authenticated with
-    `key`, a JSON object with header v, k, id and the integer fields of `specs` (see check_ints); WireError naming
-    the problem otherwise."""
+    `key` (`sealer` makes the seal it must carry: seal, or the controller's faster one of the same bytes), a JSON
+    object (read by `loads`) with header v, k, id and the integer fields of `specs` (see check_ints); WireError
+    naming the problem otherwise."""
     train_id = train_id_of(topic)
     if not isinstance(payload, (bytes, bytearray)):
         raise WireError("payload on %s is %s, not bytes" % (topic, type(payload).__name__))
@@ -186,7 +186,7 @@ def decode_sealed(key, topic, payload, kind, specs):
     if cut < 0:
         raise WireError("payload on %s has no '#<mac>' authentication suffix" % topic)
     body = payload[:cut]
-    sealed = seal(key, topic, body)
+    sealed = sealer(key, topic, body)
     if compare_digest is not None:
         diff = not compare_digest(sealed, payload)
     else:   # in time that depends on the lengths only; both hold the same body before `cut`
@@ -197,7 +197,7 @@ def decode_sealed(key, topic, payload, kind, specs):
     if diff:
         raise AuthError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     try:
-        msg = json.loads(body)   # on the controller, cbtc.protocol's json.loads: the same result, faster
+        msg = loads(body)
     except ValueError:
         raise WireError("payload on %s is not JSON" % topic)
     if not isinstance(msg, dict):
@@ -250,23 +250,17 @@ def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode
 
 
 # --- commands --------------------------------------------------------------------------------------------------
-# a command's fields, all integers, all required: (name, lowest, highest) flat
+# a command's fields, all integers, all required: (name, lowest, highest) flat. The board's copy of messages.COMMAND,
+# written out because the table's text would cost the board's heap; tests/test_messages.py holds the two equal
 COMMAND_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "sid", 0, INT31, "rseq", 0, WRAP_MASK, "v_mmps", 0, 5000,
                 "eoa_mm", -INT31, INT31,
                 "ttl_ms", 1, 10000, "acc", 1, 10000, "dec", 1, 10000, "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
                 "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX)
 
 
-def decode_command(key, topic, payload):
-    """The command dict of a sealed payload, validated; WireError with the reason otherwise."""
-    msg = decode_sealed(key, topic, payload, "cmd", COMMAND_INTS)
-    check_fields(msg, COMMAND_INTS, topic)
+def decode_command(key, topic, payload, specs=COMMAND_INTS, sealer=seal, loads=json.loads):
+    """The command dict of a sealed payload, validated against `specs` (see decode_sealed); WireError with the
+    reason otherwise."""
+    msg = decode_sealed(key, topic, payload, "cmd", specs, sealer, loads)
+    check_fields(msg, specs, topic)
     return msg
-
-
-def __getattr__(name):
-    """The zone controller's half of the protocol (wire_zc.py: report decoding, command encoding, zone topics, the
-    mode and fault names) is loaded on first use, so it never takes a board's heap."""
-    import wire_zc
-
-    return getattr(wire_zc, name)

@@ -1,32 +1,23 @@
 """The zone controller's half of the wire protocol (wire.py): report decoding and validation, command encoding, zone
 topics, the mode and fault names.
 
-Part of the one protocol definition, in a module of its own because a board never needs it: wire.py reaches these
-names on first use (`wire.decode_report`, `wire.MODES`), so a board never loads this module into its small heap.
+Part of the one protocol definition, in a module of its own because a board never needs it; its checks and its
+encoder are made from the message table (messages.py).
 """
 
 
 try:
-    from . import wire  # the controller imports the firmware as the package cbtc.firmware
+    from . import messages, wire  # the controller imports the firmware as the package cbtc.firmware
 except ImportError:
-    import wire  # top level, as under the MicroPython unix port
+    import messages  # top level, as under the MicroPython unix port
+    import wire
 
-BOOT_MAX, INT31, MAX_TAGS, VERSION, WireError = wire.BOOT_MAX, wire.INT31, wire.MAX_TAGS, wire.VERSION, wire.WireError
-WRAP_MASK = wire.WRAP_MASK
+MAX_TAGS, VERSION, WireError = wire.MAX_TAGS, wire.VERSION, wire.WireError
 check_fields, check_ints, decode_sealed = wire.check_fields, wire.check_ints, wire.decode_sealed
-dumps_compact, seal, topic_command = wire.dumps_compact, wire.seal, wire.topic_command
+dumps_compact, topic_command = wire.dumps_compact, wire.topic_command
 
-try:
-    from micropython import const
-except ImportError:  # CPython
-    def const(value):
-        return value
-
-_POS_MM = const(1000000)   # IPS coordinates stay within +-1 km (mm)
-
-MODES = ("idle", "run", "stop", "trip")
-FAULTS = ("ips_silent", "ips_crc", "rfid_absent", "enc_stall", "enc_fail", "cmd_timeout", "cmd_reject",
-          "broker_lost", "guard", "roll", "undriven", "hold", "reverse", "split")
+MODES, FAULTS, SPAN_MAX_MS, UID_HEX_LENGTHS = messages.MODES, messages.FAULTS, messages.SPAN_MAX_MS, \
+    messages.UID_HEX_LENGTHS
 REPORT_FILTER = "cbtc/train/+/report"
 
 
@@ -36,20 +27,16 @@ def topic_zone_status(zone_id):
 
 # --- reports ---------------------------------------------------------------------------------------------------
 
-# a report's integer fields, all required: (name, lowest, highest) flat; then its other fields (`rng` optional)
-REPORT_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "t_ms", 0, WRAP_MASK, "odo_mm", -INT31, INT31,
-               "v_mmps", -20000, 20000, "duty", -100, 100,
-               "cseq", -1, WRAP_MASK, "csid", -1, INT31)
-REPORT_OTHER = ("mode", "ips", "tags", "rng", "flt")
-SPAN_MAX_MS = 65535   # a tag read's span: the time since the reader's previous poll that answered (ms)
-TAG_INTS = ("odo_mm", -INT31, INT31, "t_ms", 0, WRAP_MASK, "span_ms", 0, SPAN_MAX_MS)
-UID_HEX_LENGTHS = (8, 14, 20)   # MFRC522 uids of 4, 7 and 10 bytes
+REPORT_INTS = messages.int_specs(messages.REPORT)   # a report's integer fields, all required: (name, lo, hi) flat
+REPORT_OTHER = tuple(f[0] for f in messages.REPORT[1] if f[1] != "int")   # its other fields (`rng` optional)
+TAG_INTS, IPS_INTS, RNG_INTS = messages.TAG, messages.IPS, messages.RANGING
 _HEX = "0123456789abcdefABCDEF"
 
 
-def decode_report(key, topic, payload):
-    """The report dict of a sealed payload, validated; WireError with the reason otherwise."""
-    return check_report(decode_sealed(key, topic, payload, "rep", REPORT_INTS), topic)
+def decode_report(key, topic, payload, sealer=wire.seal, loads=wire.json.loads):
+    """The report dict of a sealed payload, validated (`sealer` and `loads` as for wire.decode_sealed); WireError
+    with the reason otherwise."""
+    return check_report(decode_sealed(key, topic, payload, "rep", REPORT_INTS, sealer, loads), topic)
 
 
 def _null_or_ints(msg, field, specs, topic, required):
@@ -83,7 +70,7 @@ def check_report(msg, topic):
     check_fields(msg, REPORT_INTS, topic, REPORT_OTHER)
     if msg.get("mode") not in MODES:
         raise WireError("field 'mode' on %s is %r, not one of %s" % (topic, msg.get("mode"), ", ".join(MODES)))
-    _null_or_ints(msg, "ips", ("t_ms", 0, WRAP_MASK, "x_mm", -_POS_MM, _POS_MM, "y_mm", -_POS_MM, _POS_MM), topic, True)
+    _null_or_ints(msg, "ips", IPS_INTS, topic, True)
     tags = msg.get("tags")
     if not isinstance(tags, list) or len(tags) > MAX_TAGS:
         raise WireError("field 'tags' on %s must be a list of at most %d [uid, odo_mm, t_ms, span_ms(, data)]"
@@ -94,7 +81,7 @@ def check_report(msg, topic):
             raise WireError("entry %r of 'tags' on %s must be [uid: 8, 14 or 20 hex digits, odo_mm, t_ms, span_ms] or "
                             "[uid, odo_mm, t_ms, span_ms, data: 32 hex digits of the balise telegram]" % (tag, topic))
         check_ints(tag[1:4], TAG_INTS, topic, "tags")
-    _null_or_ints(msg, "rng", ("t_ms", 0, WRAP_MASK, "gap_mm", -100000, _POS_MM), topic, False)
+    _null_or_ints(msg, "rng", RNG_INTS, topic, False)
     faults = msg.get("flt")
     bad = not isinstance(faults, list)
     for name in [] if bad else faults:
@@ -106,45 +93,57 @@ def check_report(msg, topic):
 
 # --- commands --------------------------------------------------------------------------------------------------
 
-def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm=None,
-                   rpt_ms=0, odo_mm_per_m=1000):
-    """Sealed command payload.
+def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS, sealer=wire.seal):
+    """(encode_command, plain_body) for a command table (messages.COMMAND; a test passes a copy with a field added):
+    the encoder of a sealed payload from its fields (sealed by `sealer`), and the JSON text of a body of plain
+    fields (or None)."""
+    keys = messages.names(message)
+    template = '{"v":%d,"k":"cmd","id":"%s",' + ",".join('"%s":%%d' % name for name in keys) + "}"
 
-    boot: the boot id of the train's report rseq (the board refuses a command of another boot); sid: the
-    controller's session id (a new random int each start); seq: increasing within a session;
-    rseq: the report this command is based on; v_mmps: speed ceiling (mm/s, >= 0); eoa_mm: end of authority as a
-    value of the train's own odometer (mm) that its head must not pass (supervised by the trip curve); ttl_ms:
-    validity, counted on the board's clock from the time of report rseq; acc_mmps2 / dec_mmps2: acceleration and
-    service deceleration to use (mm/s^2); stop_mm: a service stop target (odometer mm: a station), braked to at the
-    service rate and held, not supervised by the trip curve (None: no stop short of eoa_mm); rpt_ms: the report
-    period the controller asks for while this command is valid (ms; 0: the board's own); odo_mm_per_m: a low
-    bound of the board's odometer millimetres per true metre (its encoder's scale, 1000: it reads true), which the
-    board's braking curves scale its decelerations by, so they hold in true metres.
-    """
-    if stop_mm is None:
-        stop_mm = eoa_mm
-    ints = (boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm, rpt_ms, odo_mm_per_m)
-    body = _plain_command_body(train_id, ints)
-    if body is None:   # whatever a caller passes (a test's bool, float or odd id) is written as JSON writes it
-        msg = {"v": VERSION, "k": "cmd", "id": train_id}
-        for i in range(len(ints)):
-            msg[_COMMAND_KEYS[i]] = ints[i]
-        body = dumps_compact(msg)
-    return seal(key, topic_command(train_id), body.encode())
+    def encode_command(key, train_id, *values, **named):
+        """Sealed command payload of the fields of the command table, in its order or by name (the table says each
+        field's meaning, bounds and unit); those of `defaults` may be left out (stop_mm, rpt_ms, odo_mm_per_m)."""
+        ints = values if len(values) == len(keys) and not named and None not in values \
+            else fields_of(keys, defaults, values, named)
+        body = plain_body(train_id, ints)
+        if body is None:   # whatever a caller passes (a test's bool, float or odd id) is written as JSON writes it
+            msg = {"v": VERSION, "k": "cmd", "id": train_id}
+            for i in range(len(ints)):
+                msg[keys[i]] = ints[i]
+            body = dumps_compact(msg)
+        return sealer(key, topic_command(train_id), body.encode())
 
+    def plain_body(train_id, ints):
+        """A command's JSON text for `ints` (its fields in the table's order) when every one is an int and the id
+        plain: the bytes json.dumps writes for them (an int's repr; an id of letters, digits, '_' and '-'), made at
+        a fifth of its cost, as a zone sends a command for most reports. None otherwise."""
+        if _plain_id(train_id) and set(map(type, ints)) == _INT_ONLY:
+            return template % ((VERSION, train_id) + ints)
+        return None
 
-def _plain_command_body(train_id, ints):
-    """A command's JSON text for `ints` (encode_command's fields from boot on, in order) when every one is an int and
-    the id plain: the bytes json.dumps writes for them (an int's repr; an id of letters, digits, '_' and '-'), made
-    at a fifth of its cost, as a zone sends a command for most reports. None otherwise."""
-    if _plain_id(train_id) and set(map(type, ints)) == _INT_ONLY:
-        return _COMMAND_JSON % ((VERSION, train_id) + ints)
-    return None
+    return encode_command, plain_body
 
 
-_COMMAND_KEYS = ("boot", "seq", "sid", "rseq", "v_mmps", "eoa_mm", "ttl_ms", "acc", "dec", "stop_mm", "rpt_ms",
-                 "odo_mm_per_m")
-_COMMAND_JSON = '{"v":%d,"k":"cmd","id":"%s",' + ",".join('"%s":%%d' % name for name in _COMMAND_KEYS) + "}"
+def fields_of(keys, defaults, values, named):
+    """The tuple of a message's fields in the order of `keys`: `values` by position, then `named` by name, then
+    `defaults` (a string there names the field whose value it takes); WireError naming a field missing or unknown."""
+    if len(values) > len(keys):
+        raise WireError("%d fields given; the message has %d: %s" % (len(values), len(keys), ", ".join(keys)))
+    given = dict(zip(keys, values))
+    for name in named:
+        if name not in keys or name in given:
+            raise WireError("field %r is %s" % (name, "given twice" if name in given else "not in the message"))
+        given[name] = named[name]
+    out = []
+    for name in keys:
+        if name in given and not (given[name] is None and name in defaults):   # None: as if left out
+            out.append(given[name])
+        elif name in defaults:
+            default = defaults[name]
+            out.append(given[default] if isinstance(default, str) else default)
+        else:
+            raise WireError("field %r is missing (the message has %s)" % (name, ", ".join(keys)))
+    return tuple(out)
 
 
 _INT_ONLY = {int}   # the types of a command's fields when every one is an int (a bool is not)
@@ -163,3 +162,6 @@ def _plain_id(train_id):
         _PLAIN_IDS.clear()
     _PLAIN_IDS.add(train_id)
     return True
+
+
+encode_command, plain_command_body = command_encoder()

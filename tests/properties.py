@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from cbtc.errors import LayoutError
 from cbtc.firmware import telegram
 from cbtc.layout_files import resolve_layout
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from cbtc.railway.layout_dict import layout_from_dict
 
 KEY = b"0123456789abcdef"
@@ -30,20 +30,20 @@ json_values = st.recursive(
     st.none() | st.booleans() | st.integers(-2 ** 70, 2 ** 70) | st.floats(allow_nan=False) | st.text(max_size=12),
     lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=6), inner, max_size=4),
     max_leaves=12)
-hex_text = st.sampled_from(wire.UID_HEX_LENGTHS).flatmap(
+hex_text = st.sampled_from(wire_zc.UID_HEX_LENGTHS).flatmap(
     lambda n: st.text("0123456789ABCDEFabcdef", min_size=n, max_size=n))
 board_ms = st.integers(0, WRAP)
-span_ms = st.integers(0, wire.SPAN_MAX_MS)
+span_ms = st.integers(0, wire_zc.SPAN_MAX_MS)
 tags = st.lists(st.one_of(
     st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_ms).map(list),
     st.tuples(hex_text, st.integers(-INT31, INT31), board_ms, span_ms,
               st.text("0123456789abcdef", min_size=32, max_size=32)).map(list)), max_size=wire.MAX_TAGS)
 report_fields = st.fixed_dictionaries({
     "boot": st.integers(1, wire.BOOT_MAX), "seq": board_ms, "t_ms": board_ms, "odo_mm": st.integers(-INT31, INT31),
-    "v_mmps": st.integers(-20000, 20000), "duty_pct": st.integers(-100, 100), "mode": st.sampled_from(wire.MODES),
+    "v_mmps": st.integers(-20000, 20000), "duty_pct": st.integers(-100, 100), "mode": st.sampled_from(wire_zc.MODES),
     "cseq": st.integers(-1, WRAP), "csid": st.integers(-1, INT31),
     "ips": st.none() | st.tuples(board_ms, st.integers(-10 ** 6, 10 ** 6), st.integers(-10 ** 6, 10 ** 6)).map(list),
-    "tags": tags, "faults": st.lists(st.sampled_from(wire.FAULTS), max_size=4),
+    "tags": tags, "faults": st.lists(st.sampled_from(wire_zc.FAULTS), max_size=4),
     "rng": st.none() | st.tuples(board_ms, st.integers(-100000, 10 ** 6)).map(list)})
 command_fields = st.fixed_dictionaries({
     "boot": st.integers(1, wire.BOOT_MAX), "seq": board_ms, "sid": st.integers(0, INT31), "rseq": board_ms,
@@ -75,7 +75,7 @@ def encode_report(fields):
 
 def encode_command(fields):
     f = dict(fields)
-    return wire.encode_command(KEY, "A", f.pop("boot"), f.pop("seq"), f.pop("sid"), f.pop("rseq"), f.pop("v_mmps"),
+    return wire_zc.encode_command(KEY, "A", f.pop("boot"), f.pop("seq"), f.pop("sid"), f.pop("rseq"), f.pop("v_mmps"),
                                f.pop("eoa_mm"), f.pop("ttl_ms"), f.pop("acc_mmps2"), f.pop("dec_mmps2"),
                                f.pop("stop_mm"), f.pop("rpt_ms"), f.pop("odo_mm_per_m"))
 
@@ -100,15 +100,15 @@ def report_conforms(msg):
             "v_mmps": (-20000, 20000), "duty": (-100, 100), "cseq": (-1, WRAP), "csid": (-1, INT31)}
     allowed = set(ints) | {"v", "k", "id", "mode", "ips", "tags", "rng", "flt"}
     return (set(msg) <= allowed and msg["v"] == wire.VERSION and type(msg["v"]) is int and msg["k"] == "rep"
-            and msg["id"] == "A" and all(_int_in(msg[k], *b) for k, b in ints.items()) and msg["mode"] in wire.MODES
+            and msg["id"] == "A" and all(_int_in(msg[k], *b) for k, b in ints.items()) and msg["mode"] in wire_zc.MODES
             and (msg["ips"] is None or _ints(msg["ips"], [(0, WRAP), (-10 ** 6, 10 ** 6), (-10 ** 6, 10 ** 6)]))
             and (msg["rng"] is None or _ints(msg["rng"], [(0, WRAP), (-100000, 10 ** 6)]))
             and type(msg["tags"]) is list and len(msg["tags"]) <= wire.MAX_TAGS
             and all(type(t) is list and len(t) in (4, 5) and _hex(t[0], (8, 14, 20))
-                    and _ints(t[1:4], [(-INT31, INT31), (0, WRAP), (0, wire.SPAN_MAX_MS)])
+                    and _ints(t[1:4], [(-INT31, INT31), (0, WRAP), (0, wire_zc.SPAN_MAX_MS)])
                     and (len(t) == 4 or _hex(t[4], (32,)))
                     for t in msg["tags"])
-            and type(msg["flt"]) is list and all(f in wire.FAULTS for f in msg["flt"]))
+            and type(msg["flt"]) is list and all(f in wire_zc.FAULTS for f in msg["flt"]))
 
 
 def command_conforms(msg):
@@ -131,7 +131,7 @@ def decoded_or_reason(decode, key, topic, payload):
 # --- properties ----------------------------------------------------------------------------------------------------
 
 def report_round_trip(fields):
-    msg = wire.decode_report(KEY, REPORT_TOPIC, encode_report(fields))
+    msg = wire_zc.decode_report(KEY, REPORT_TOPIC, encode_report(fields))
     expected = {"v": wire.VERSION, "k": "rep", "id": "A", "boot": fields["boot"], "seq": fields["seq"],
                 "t_ms": fields["t_ms"], "odo_mm": fields["odo_mm"], "v_mmps": fields["v_mmps"],
                 "duty": fields["duty_pct"], "mode": fields["mode"], "cseq": fields["cseq"], "csid": fields["csid"],
@@ -150,7 +150,7 @@ def command_round_trip(fields):
 
 def mutated_report_is_refused_or_conforms(body):
     payload = wire.seal(KEY, REPORT_TOPIC, json.dumps(body).encode())
-    verdict, value = decoded_or_reason(wire.decode_report, KEY, REPORT_TOPIC, payload)
+    verdict, value = decoded_or_reason(wire_zc.decode_report, KEY, REPORT_TOPIC, payload)
     assert verdict == "refused" or report_conforms(value), value
 
 
@@ -161,7 +161,7 @@ def mutated_command_is_refused_or_conforms(body):
 
 
 def any_bytes_are_refused_with_a_reason(payload, sealed):
-    for topic, decode in ((REPORT_TOPIC, wire.decode_report), (CMD_TOPIC, wire.decode_command)):
+    for topic, decode in ((REPORT_TOPIC, wire_zc.decode_report), (CMD_TOPIC, wire.decode_command)):
         data = wire.seal(KEY, topic, payload) if sealed else payload
         verdict, value = decoded_or_reason(decode, KEY, topic, data)
         assert verdict == "refused" or (report_conforms(value) if topic == REPORT_TOPIC else command_conforms(value))

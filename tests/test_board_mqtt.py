@@ -2,8 +2,8 @@
 
 The board is `micropython` running firmware/main.py (precompiled, as `cbtc flash` deploys it) with the host shims:
 Wi-Fi joins at once, the UART holds what the IPS sent (garbage, a corrupted frame, a good fix), no RFID reader is
-on the SPI bus. A paho client plays the zone controller: it decodes reports with wire.decode_report and sends sealed
-commands with wire.encode_command. Then the broker is killed and restarted: the board keeps looping, brakes when its
+on the SPI bus. A paho client plays the zone controller: it decodes reports with wire_zc.decode_report and sends sealed
+commands with wire_zc.encode_command. Then the broker is killed and restarted: the board keeps looping, brakes when its
 command expires, reconnects with backoff and reports again; when the board dies, its last will says `offline`.
 """
 
@@ -18,7 +18,7 @@ import time
 
 import paho.mqtt.client as mqtt
 
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from mpy_harness import (
     MPY_TESTS_DIR,
     SHIMS_DIR,
@@ -115,7 +115,7 @@ class Controller:
         with self.lock:
             if msg.topic.endswith("/report"):
                 try:
-                    self.reports.append(wire.decode_report(KEY, msg.topic, msg.payload))
+                    self.reports.append(wire_zc.decode_report(KEY, msg.topic, msg.payload))
                 except wire.WireError as exc:
                     self.rejected.append(exc.reason)
             elif msg.topic.endswith("/status"):
@@ -137,7 +137,7 @@ class Controller:
     def command(self, v_mmps=400, eoa_mm=10000, ttl_ms=800):
         report = self.last()
         self.cmd_seq += 1
-        payload = wire.encode_command(KEY, TRAIN, report["boot"], self.cmd_seq, 7, report["seq"], v_mmps, eoa_mm,
+        payload = wire_zc.encode_command(KEY, TRAIN, report["boot"], self.cmd_seq, 7, report["seq"], v_mmps, eoa_mm,
                                       ttl_ms, 600, 800)
         self.client.publish(wire.topic_command(TRAIN), payload)
 
@@ -191,7 +191,7 @@ def test_board_boots_reports_obeys_brakes_and_survives_a_lost_broker(mpy_tree, t
         running = zc.wait(lambda r: r["mode"] == "run" and r["duty"] > 0, 1, "run with duty")
         assert running["cseq"] >= 1
         # a command sealed with another key: refused, and said on the console with the stats, once
-        zc.client.publish("cbtc/train/%s/cmd" % TRAIN, wire.encode_command(
+        zc.client.publish("cbtc/train/%s/cmd" % TRAIN, wire_zc.encode_command(
             b"wrong key 16 byt", TRAIN, running["boot"], zc.cmd_seq + 1, 7, running["seq"], 400, 10000, 800, 600, 800))
 
         # silence: the command expires and the train brakes to a stop

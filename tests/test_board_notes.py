@@ -6,12 +6,12 @@ from types import SimpleNamespace
 import pytest
 
 from cbtc.live.board_notes import BoardNotes
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 
 
 def wrong_key_reason():
     """The reason the wire module gives a command sealed with a key other than the board's."""
-    payload = wire.encode_command(b"another key 16 b", "A", 1, 1, 7, 1, 400, 1000, 800, 600, 800)
+    payload = wire_zc.encode_command(b"another key 16 b", "A", 1, 1, 7, 1, 400, 1000, 800, 600, 800)
     with pytest.raises(wire.AuthError) as refused:
         wire.decode_command(bytes(16), wire.topic_command("A"), payload)
     return refused.value.reason

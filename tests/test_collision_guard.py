@@ -2,7 +2,7 @@
 case."""
 
 from cbtc.firmware import obu
-from cbtc.protocol import wire
+from cbtc.protocol import wire_zc
 from fake_drivers import FakeEncoder, FakeIps, FakeMotor, FakeRfid
 
 KEY = b"0123456789abcdef"
@@ -39,8 +39,8 @@ class Bench:
 
     def command(self):
         self.seq += 1
-        rseq = wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])["seq"]
-        payload = wire.encode_command(KEY, "B", self.unit.boot_id, self.seq, 1, rseq, 600, 10000, 800, 600, 800)
+        rseq = wire_zc.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])["seq"]
+        payload = wire_zc.encode_command(KEY, "B", self.unit.boot_id, self.seq, 1, rseq, 600, 10000, 800, 600, 800)
         self.unit.on_message(CMD, payload, self.now_ms)
 
     def cruise(self, v_mmps, steps):
@@ -71,7 +71,7 @@ def test_short_gap_brakes_despite_a_valid_command_and_reports_the_fault():
     assert bench.motor.mode == "brake" and bench.unit.mode == "trip"
     bench.cruise(500, 4)                              # commands keep coming: still braked while the gap is fresh
     assert bench.motor.mode == "brake"
-    report = wire.decode_report(KEY, bench.sent[-1][0], bench.sent[-1][1])
+    report = wire_zc.decode_report(KEY, bench.sent[-1][0], bench.sent[-1][1])
     assert "guard" in report["flt"] and report["rng"][1] == 200
 
 

@@ -23,7 +23,7 @@ digest = hashlib.sha256()
 for spec in specs:
     sim = Simulation(spec.config(), keep_samples=True)
     commands = []
-    sim.zc.on_command = lambda state, now_s: commands.append((state.train_id, state.cmd_fields, now_s))
+    sim.zc.commands.subscribe(lambda sent: commands.append((sent.train_id, sent.command, sent.t_s)))
     rec = sim.run()
     for name in ("head_s_m", "v_mps", "est_s_m", "est_sigma_m"):
         for series in getattr(rec, name):

@@ -97,11 +97,11 @@ def test_an_unconfirmed_train_runs_at_restricted_speed():
     sim = Simulation(config)
     caps = {}
 
-    def watch(state, now_s):
-        if now_s > 3.5:
-            caps.setdefault(state.estimator.confirmed, []).append(state.cmd_fields[3])
+    def watch(sent):
+        if sent.t_s > 3.5:
+            caps.setdefault(sent.confirmed, []).append(sent.command.v_mmps)
 
-    sim.scheduler.call_at(3.6, lambda: setattr(sim.zc, "on_command", watch))
+    sim.scheduler.call_at(3.6, lambda: sim.zc.commands.subscribe(watch))
     sim.run()
     restricted_mmps = int(sim.zc.params.restricted_mps * 1000)
     assert caps.get(False), "the new zone placed the trains on the IPS alone first"

@@ -4,7 +4,7 @@ under a valid command, with its encoder failing in each way a real one does; tru
 import pytest
 
 from cbtc.firmware import obu
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from cbtc.railway import physics
 from cbtc.railway.train_profile import TrainProfile
 from fake_drivers import FakeIps, FakeMotor, FakeRfid
@@ -72,8 +72,8 @@ def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=()
                            profile.obu_config())
     s_m, v_mps, now_ms = 0.0, start_v_mmps / 1000, 0
     unit.step(now_ms)
-    report = wire.decode_report(KEY, wire.topic_report("A"), sent[-1])
-    unit.on_message(wire.topic_command("A"), wire.encode_command(
+    report = wire_zc.decode_report(KEY, wire.topic_report("A"), sent[-1])
+    unit.on_message(wire.topic_command("A"), wire_zc.encode_command(
         KEY, "A", 9, 1, 1, report["seq"], 600, eoa_mm, 10000, 600, 800), now_ms)
     furthest_mm = 0.0
     for _ in range(int(seconds * 1000 / PASS_MS)):
@@ -85,11 +85,11 @@ def drive(way, fail_at_mm, eoa_mm=2000, seconds=6.0, start_v_mmps=0.0, stalls=()
             unit.step(now_ms)
         for k, (at_ms, v_cap_mmps, ahead_mm) in enumerate(later):
             if at_ms == now_ms:
-                report = wire.decode_report(KEY, wire.topic_report("A"), sent[-1])
-                unit.on_message(wire.topic_command("A"), wire.encode_command(
+                report = wire_zc.decode_report(KEY, wire.topic_report("A"), sent[-1])
+                unit.on_message(wire.topic_command("A"), wire_zc.encode_command(
                     KEY, "A", 9, 2 + k, 1, report["seq"], v_cap_mmps, unit.odo_mm + ahead_mm, 10000, 600, 800), now_ms)
         furthest_mm = max(furthest_mm, s_m * 1000)
-    reports = [wire.decode_report(KEY, wire.topic_report("A"), p) for p in sent]
+    reports = [wire_zc.decode_report(KEY, wire.topic_report("A"), p) for p in sent]
     return unit, s_m * 1000, v_mps, furthest_mm, encoder, reports
 
 
@@ -133,7 +133,7 @@ def test_a_count_that_goes_back_trips_a_one_channel_board_and_commands_on_older_
     unit, s_mm, v, furthest, _, reports = drive("back", fail_at_mm=100, seconds=1.0)
     assert unit.enc_fail_ms is not None and unit.last_sensor_error == "encoder: count went back"
     before = [r for r in reports if "enc_fail" not in r["flt"]][-1]
-    command = wire.encode_command(KEY, "A", 9, 1, 2, before["seq"], 600, 2000, 10000, 600, 800)
+    command = wire_zc.encode_command(KEY, "A", 9, 1, 2, before["seq"], 600, 2000, 10000, 600, 800)
     unit.on_message(wire.topic_command("A"), command, unit._last_step_ms)
     assert not unit.command_valid(unit._last_step_ms) and "before the encoder failed" in unit.last_reject
 
@@ -163,7 +163,7 @@ def test_reference_travel_before_a_stop_is_not_carried_into_the_next_start():
     unit._ref_mm = 7.8   # asked at creep speed while static friction held the train, just before it braked
     unit.step(unit._last_step_ms + PASS_MS)
     report = reports[-1]
-    unit.on_message(wire.topic_command("A"), wire.encode_command(
+    unit.on_message(wire.topic_command("A"), wire_zc.encode_command(
         KEY, "A", 9, 1, 2, report["seq"], 600, report["odo_mm"] + 4, 10000, 600, 800), unit._last_step_ms)
     for _ in range(19):
         unit.step(unit._last_step_ms + PASS_MS)

@@ -20,7 +20,7 @@ import sys
 import pytest
 
 from cbtc.board.mpy_build import build
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from mpy_harness import MPY_TESTS_DIR, REPO, SHIMS_DIR, VENDOR_DIR, _compile
 
 BOOT_ID = 4242   # tests/wasm/heap_probe.py gives the board this boot id, so the prepared commands name it
@@ -68,7 +68,7 @@ def test_whole_firmware_fits_an_esp8266_heap_in_32_bit_micropython(tmp_path):
     cmds = tmp_path / "cmds"
     cmds.mkdir()
     for seq in range(200):
-        payload = wire.encode_command(KEY, "A", BOOT_ID, seq + 1, 7, seq, 300, 10000, 800, 600, 800)
+        payload = wire_zc.encode_command(KEY, "A", BOOT_ID, seq + 1, 7, seq, 300, 10000, 800, 600, 800)
         (cmds / str(seq)).write_bytes(_publish_packet(wire.topic_command("A"), payload))
     proc = subprocess.run([NODE, os.path.join(WASM_DIR, "heap32.mjs"), MICROPYTHON_MJS, str(tree), str(cmds), "600",
                            position(100, 200, 0).hex()], capture_output=True, text=True, timeout=240)

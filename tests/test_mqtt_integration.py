@@ -17,7 +17,7 @@ import pytest
 
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.errors import BusError
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 
 pytestmark = pytest.mark.mosquitto
 
@@ -197,7 +197,7 @@ def test_forged_and_replayed_commands_and_bad_reports_are_ignored(fleet):
         real = json.loads(commands[-1][:commands[-1].rfind(b"#")])
         before = fleet.status()["trains"][0]
         forged_eoa_mm = body["odo_mm"] + 100000
-        attacker.publish("cbtc/train/A/cmd", wire.encode_command(
+        attacker.publish("cbtc/train/A/cmd", wire_zc.encode_command(
             b"wrong key 16 byt", "A", body["boot"], real["seq"] + 1000, real["sid"], body["seq"], 600, forged_eoa_mm,
             800, 600, 800))
         attacker.publish("cbtc/train/A/cmd", replay)

@@ -4,7 +4,7 @@ trip."""
 import pytest
 
 from cbtc.firmware import obu
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from cbtc.railway import train_profile
 from cbtc.railway.train_profile import TrainProfile
 from fake_drivers import (
@@ -47,11 +47,11 @@ class Bench:
         self.unit.step(self.now_ms)
 
     def last_report(self):
-        return wire.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])
+        return wire_zc.decode_report(KEY, self.sent[-1][0], self.sent[-1][1])
 
     def reported_tags(self):
         """Every tag entry of every report sent so far, in order."""
-        return [tag for topic, payload in self.sent for tag in wire.decode_report(KEY, topic, payload)["tags"]]
+        return [tag for topic, payload in self.sent for tag in wire_zc.decode_report(KEY, topic, payload)["tags"]]
 
     def command(self, v_mmps=500, eoa_mm=5000, ttl_ms=800, sid=1, seq=None, rseq=None, key=KEY, stop_mm=None,
                 rpt_ms=0, odo_mm_per_m=1000):
@@ -59,7 +59,7 @@ class Bench:
             self.cmd_seq += 1
             seq = self.cmd_seq
         rseq = self.last_report()["seq"] if rseq is None else rseq
-        payload = wire.encode_command(key, "A", self.unit.boot_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800,
+        payload = wire_zc.encode_command(key, "A", self.unit.boot_id, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, 600, 800,
                                       stop_mm, rpt_ms, odo_mm_per_m)
         self.unit.on_message(CMD, payload, self.now_ms)
         return payload
@@ -581,4 +581,4 @@ def test_a_tag_read_carries_the_time_since_the_readers_previous_poll_that_answer
     for _ in range(3):
         bench.step(v_mmps=400)
     assert bench.reported_tags()[-1] == ["04A1B2C4", 96, 240, 80]   # since the last poll that answered: four passes
-    assert obu._SPAN_MAX_MS == wire.SPAN_MAX_MS   # the longest span the board sends is the longest the wire takes
+    assert obu._SPAN_MAX_MS == wire_zc.SPAN_MAX_MS   # the longest span the board sends is the longest the wire takes

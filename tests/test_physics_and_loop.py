@@ -8,7 +8,7 @@ import pytest
 from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from cbtc.railway import physics
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.scheduler import VirtualScheduler
@@ -81,9 +81,9 @@ def test_onboard_speed_loop_tracks_the_commanded_speed_on_the_plant():
     speeds = []
 
     def answer(topic, payload):
-        report = wire.decode_report(key, topic, payload)
+        report = wire_zc.decode_report(key, topic, payload)
         seq[0] += 1
-        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", report["boot"], seq[0], 1, report["seq"],
+        ctl.publish(wire.topic_command("A"), wire_zc.encode_command(key, "A", report["boot"], seq[0], 1, report["seq"],
                                                                  400, 5000, 800, 600, 800))
     ctl.subscribe(wire.topic_report("A"), answer)
     sched.call_every(0.02, train.tick)
@@ -112,9 +112,9 @@ def test_the_speed_loop_rides_the_service_curve_to_a_standstill_without_tripping
     modes = []
 
     def answer(topic, payload):
-        report = wire.decode_report(key, topic, payload)
+        report = wire_zc.decode_report(key, topic, payload)
         state["seq"] += 1
-        ctl.publish(wire.topic_command("A"), wire.encode_command(key, "A", report["boot"], state["seq"], 1,
+        ctl.publish(wire.topic_command("A"), wire_zc.encode_command(key, "A", report["boot"], state["seq"], 1,
                                                                  report["seq"], 600, state["eoa_mm"], 800, 600, 800))
     ctl.subscribe(wire.topic_report("A"), answer)
     sched.call_every(0.02, train.tick)

@@ -90,7 +90,7 @@ def mfrc522_answers_are_a_uid_a_reader_gives_or_nothing(answers):
     for item in out[1:]:
         if item != "bus error":
             uid, data = item
-            assert uid is None or p._hex(uid, p.wire.UID_HEX_LENGTHS) and uid == uid.upper(), uid
+            assert uid is None or p._hex(uid, p.wire_zc.UID_HEX_LENGTHS) and uid == uid.upper(), uid
             assert data is None or p._hex(data, (32,))
 
 
@@ -148,7 +148,7 @@ def the_board_takes_exactly_the_fresh_authentic_commands(actions):
         if kind == "session":
             sid, seq = sid + 1, 0
             continue
-        report = p.wire.decode_report(p.KEY, p.REPORT_TOPIC, reports[-1])
+        report = p.wire_zc.decode_report(p.KEY, p.REPORT_TOPIC, reports[-1])
         if kind == "replay":
             if not sent:
                 continue
@@ -156,7 +156,7 @@ def the_board_takes_exactly_the_fresh_authentic_commands(actions):
         else:
             seq += 1
             key = p.KEY if kind == "fresh" else b"not the key 1234"
-            payload = p.wire.encode_command(key, "A", report["boot"], seq, sid, report["seq"], 500, arg, 800, 600,
+            payload = p.wire_zc.encode_command(key, "A", report["boot"], seq, sid, report["seq"], 500, arg, 800, 600,
                                             800)
             expect = kind == "fresh" and (sid == cur_sid or cur_rseq is None or report["seq"] > cur_rseq)
             # a board driven with no counts finds its encoder failed: the odometer of earlier reports is lost

@@ -8,7 +8,7 @@ import pytest
 
 from cbtc.bus.mock_broker import LinkProfile
 from cbtc.layout_files import load_layout
-from cbtc.protocol import wire
+from cbtc.protocol import wire_zc
 from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim.recorder import violations
@@ -298,7 +298,7 @@ def test_roll_away_protection_holds_a_rolling_train_within_centimetres(fault):
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["rolled_onto"] == 0, summary
     assert train.obu.holds >= 1 and not train.obu.reverse and worst_back_m[0] < 0.04, worst_back_m
-    assert "hold" in wire.FAULTS and train.rollback_left_m > 0.0   # the slope still pulls: the board holds it
+    assert "hold" in wire_zc.FAULTS and train.rollback_left_m > 0.0   # the slope still pulls: the board holds it
 
 
 @pytest.mark.parametrize("distance_m", [0.1, 0.3, 0.5])

@@ -7,7 +7,7 @@ import pytest
 from cbtc.authority.fixed_block import FixedBlockPolicy
 from cbtc.authority.moving_block import MovingBlockPolicy
 from cbtc.layout_files import load_layout
-from cbtc.sim.truth import TruthMonitor, protected_m
+from cbtc.sim.truth import TruthMonitor
 
 
 def _train(odo_mm, eoa_mm):
@@ -53,15 +53,15 @@ def test_the_protected_point_is_the_true_tail_ahead_or_the_first_truly_occupied_
     layout = load_layout("itb_square")
     spans = [("B", 1.0, 0.7), ("A", 2.5, 2.2)]
     moving = MovingBlockPolicy()
-    assert protected_m(moving, layout, "B", spans) == pytest.approx(1.2 - moving.params.margin_m)
-    assert protected_m(moving, layout, "B", spans[:1]) == float("inf")
+    assert moving.protected_m(layout, "B", spans) == pytest.approx(1.2 - moving.params.margin_m)
+    assert moving.protected_m(layout, "B", spans[:1]) == float("inf")
     fixed = FixedBlockPolicy(blocks=8)
     size_m = layout.length_m / 8
     entry_m = fixed.index_at(fixed.blocks(layout), layout, 2.2) * size_m   # A's tail's block starts here
-    assert protected_m(fixed, layout, "B", spans) == pytest.approx(entry_m - 1.0 - fixed.params.margin_m)
+    assert fixed.protected_m(layout, "B", spans) == pytest.approx(entry_m - 1.0 - fixed.params.margin_m)
     inside = [("B", 1.0, 0.7), ("A", 1.35, 1.05)]                           # A's tail in B's own block, ahead of B
     assert fixed.index_at(fixed.blocks(layout), layout, 1.05) == fixed.index_at(fixed.blocks(layout), layout, 1.0)
-    assert protected_m(fixed, layout, "B", inside) == pytest.approx(0.05 - fixed.params.margin_m)
+    assert fixed.protected_m(layout, "B", inside) == pytest.approx(0.05 - fixed.params.margin_m)
 
 
 def test_every_trains_protected_room_at_once_equals_one_at_a_time():
@@ -69,7 +69,6 @@ def test_every_trains_protected_room_at_once_equals_one_at_a_time():
     `protected_m` train by train, on random fleets with touching and overlapping trains, under both policies."""
     import random
 
-    from cbtc.sim.truth import protected_all_m
 
     rng = random.Random(1)
     for name, policy in (("lego_oval", MovingBlockPolicy()), ("straight_test", MovingBlockPolicy()),
@@ -80,5 +79,5 @@ def test_every_trains_protected_room_at_once_equals_one_at_a_time():
             for i in range(rng.randint(1, 10)):
                 head = spans[-1][1] if spans and rng.random() < 0.1 else layout.wrap(rng.uniform(0, layout.length_m))
                 spans.append((f"T{i}", head, layout.wrap(head - rng.choice([0.2, 0.3, 0.5]))))
-            assert protected_all_m(policy, layout, spans) == [protected_m(policy, layout, t, spans)
+            assert policy.protected_all_m(layout, spans) == [policy.protected_m(layout, t, spans)
                                                              for t, _h, _tl in spans]

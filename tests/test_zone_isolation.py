@@ -8,7 +8,7 @@ import random
 import pytest
 
 from cbtc.layout_files import load_layout
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from cbtc.sim.simulation import Simulation
 from cbtc.zone import plausibility
 from cbtc.zone.config import paper_scenario
@@ -33,12 +33,12 @@ def extreme_report(rng, zc, key):
         boot=base.get("boot", 1),   # another boot with the key is a restart of the board: tests/test_replay.py
         seq=(base.get("seq", 0) + rng.choice([1, 1, 1, 2, 1000, 2 ** 29])) & W,
         t_ms=extreme(rng, 0, W, t) & W, odo_mm=extreme(rng, -INT31, INT31, odo), v_mmps=extreme(rng, -20000, 20000),
-        duty_pct=extreme(rng, -100, 100), mode=rng.choice(wire.MODES), cseq=extreme(rng, -1, W),
+        duty_pct=extreme(rng, -100, 100), mode=rng.choice(wire_zc.MODES), cseq=extreme(rng, -1, W),
         csid=rng.choice([zc.session_id, -1, extreme(rng, -1, INT31)]),
         ips=rng.choice([None, [extreme(rng, 0, W, t) & W, extreme(rng, -10 ** 6, 10 ** 6),
                                extreme(rng, -10 ** 6, 10 ** 6)]]),
         tags=rng.choice([[], [["04A1B2C3", extreme(rng, -INT31, INT31, odo), extreme(rng, 0, W, t) & W,
-                               extreme(rng, 0, wire.SPAN_MAX_MS)]]]),
+                               extreme(rng, 0, wire_zc.SPAN_MAX_MS)]]]),
         faults=rng.choice([[], [], ["enc_fail"]]),
         rng=rng.choice([None, [extreme(rng, 0, W, t) & W, extreme(rng, -100000, 10 ** 6)]]))
     return wire.encode_report(key, "A", **fields)

@@ -9,11 +9,11 @@ from cbtc.sim.simulation import Simulation
 def test_twelve_trains_fit_100_columns_with_their_authority_and_a_stale_one_marked():
     sim = Simulation(sim_config("lego_long_oval", 12, seed=3, duration_s=30.0))
     sim.scheduler.run_until(0.5)
-    held = status_table(sim.zc.snapshot(0.5), True, 0.5)   # while a train is not located yet: every train held
+    held = status_table(sim.zc.view(0.5), True)   # while a train is not located yet: every train held
     sim.scheduler.run_until(12.0)
     sim.trains[5].frozen = True          # a dead board: its reports stop
     sim.scheduler.run_until(14.0)
-    lines = status_table(sim.zc.snapshot(14.0), True, 14.0)
+    lines = status_table(sim.zc.view(14.0), True)
     assert len(lines) == 2 + 12 and all(len(line) <= 100 for line in lines + held), "\n".join(lines)
     rows = {line.split()[0]: line for line in lines[2:]}
     dead = sim.trains[5].train_id

@@ -9,13 +9,14 @@ from dataclasses import fields, replace
 
 import yaml
 
+from cbtc.authority.policy import MOVING_BLOCK, policy_names
 from cbtc.errors import CbtcError, ConfigError
 from cbtc.layout_files import load_layout, packaged_names, resolve_packaged
 from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim import faults as fault_catalogue
 from cbtc.zone.config import ScenarioConfig, TrainSpec
-from cbtc.zone.factory import make_policy
+from cbtc.zone.factory import make_policy, policy_class
 
 TOP_KEYS = ("name", "description", "layout", "seed", "duration_s", "laps", "policy", "blocks", "estimator", "dwell_s",
             "trains", "faults", "reference", "clear_track")
@@ -24,7 +25,7 @@ REFERENCE_FIGURES = ("mean_gap_m", "mean_gap_following_m", "min_gap_m", "mean_la
                      "trains_per_hour")
 TRAIN_KEYS = ("id", "start", "stops", "dwell_s", "profile")
 PROFILE_KEYS = tuple(f.name for f in fields(TrainProfile))
-POLICIES = ("moving_block", "fixed_block")
+POLICIES = policy_names()
 ESTIMATORS = ("ukf", "odometry")
 CLEAR_TRACK = ("truth", "none")   # ScenarioConfig.clear_track
 
@@ -197,11 +198,12 @@ def scenario_from_dict(data, source="<dict>") -> ScenarioConfig:
         laps = r.number(data, "laps", "laps", minimum=1, whole=True)
         if not layout.closed:
             r.fail(data, "laps", "laps", f"layout {layout.name} is an open line: it has no laps; remove laps")
-    policy = r.choice(data, "policy", "policy", POLICIES, "moving_block")
+    policy = r.choice(data, "policy", "policy", POLICIES, MOVING_BLOCK)
     options = {}
     if "blocks" in data:
-        if policy != "fixed_block":
-            r.fail(data, "blocks", "blocks", "is for policy: fixed_block; moving block has no blocks")
+        if not policy_class(policy).uses_blocks:
+            r.fail(data, "blocks", "blocks", f"is for policy: {_with_blocks()}; {policy_class(policy).title} has no "
+                   f"blocks")
         options["blocks"] = r.number(data, "blocks", "blocks", minimum=2, whole=True)
     estimator = r.choice(data, "estimator", "estimator", ESTIMATORS, "ukf")
     dwell_s = r.dwell(data, "dwell_s", "dwell_s", (1.0, 3.0))
@@ -213,7 +215,7 @@ def scenario_from_dict(data, source="<dict>") -> ScenarioConfig:
                             clear_track=clear_track,
                             name=str(data.get("name") or os.path.basename(source)[:-5]),
                             reference=_reference(r, data) if "reference" in data else None)
-    if policy == "fixed_block":   # blocks the trains can move in (more than the trains on a loop)
+    if policy_class(policy).uses_blocks:   # blocks the trains can move in (more than the trains on a loop)
         try:
             make_policy(config)
         except ConfigError as exc:
@@ -355,3 +357,7 @@ def _faults(r, data, train_ids):
         except ConfigError as exc:
             r.fail(items, i, where, f"{exc}; see docs/faults.md")
     return tuple(out)
+
+
+def _with_blocks() -> str:
+    return " or ".join(name for name in POLICIES if policy_class(name).uses_blocks)

@@ -10,6 +10,9 @@ circuits, which detect any part of a train in a block: in simulation from the tr
 otherwise from the estimates widened by k sigma.
 """
 
+from dataclasses import replace
+
+from cbtc.authority.policy import FIXED_BLOCK
 from cbtc.authority.rules import AuthorityParams
 from cbtc.authority.speed_code_channel import SpeedCodeChannel
 from cbtc.authority.values import Authority, Situation
@@ -25,9 +28,12 @@ def equal_blocks(length_m: float, count: int):
 
 
 class FixedBlockPolicy:
-    name = "fixed_block"
+    """An AuthorityPolicy (cbtc.authority.policy): the entry of the first occupied block ahead bounds the authority."""
+    name = FIXED_BLOCK
+    title = "fixed block"
     fast_reports = False   # the authority rests on track circuits, not on the train ahead's reports
     needs_spans = True     # the zone passes every train's span (Situation.spans): its occupancy
+    uses_blocks = True
 
     def __init__(self, params: AuthorityParams = None, blocks=None, speed_codes=(0.5, 0.75, 1.0),
                  track_circuits=None, code_ber=0.0, seed=0):
@@ -76,6 +82,40 @@ class FixedBlockPolicy:
         blocks = self.blocks(sit.layout)
         clear_ahead = self.clear_run(sit.layout, blocks, sit.spans, sit.own.train_id, sit.own.s_m)[0]
         return self.index_at(blocks, sit.layout, sit.own.s_m), min(clear_ahead, len(self.speed_codes) - 1)
+
+    def signal(self, sit: Situation) -> Situation:
+        """`sit` with the speed code its train received: the code for its block, sent through the rails."""
+        block_i, code = self.code(sit)
+        return replace(sit, received_code=self.codes.transmit(block_i, code))
+
+    def protected_m(self, layout, train_id, spans) -> float:
+        """In truth: to the entry of the first truly occupied block ahead, or to the tail of a train in its own block
+        ahead of it, less the safety margin; on a line the end of the track bounds it too."""
+        head = next(h for t, h, _ in spans if t == train_id)
+        ahead = [layout.ahead_m(head, tail) for t, h, tail in spans if t != train_id and (layout.closed or h > head)]
+        if not layout.closed:
+            ahead.append(layout.length_m - head)
+        blocks = self.blocks(layout)
+        to_end_m = layout.ahead_m(head, blocks[self.index_at(blocks, layout, head)].end_m)
+        in_block = [d for d in ahead if d < to_end_m]
+        if in_block:
+            return min(in_block) - self.params.margin_m
+        return self.clear_run(layout, blocks, spans, train_id, head)[1] - self.params.margin_m
+
+    def protected_all_m(self, layout, spans) -> list:
+        return [self.protected_m(layout, train_id, spans) for train_id, _h, _t in spans]
+
+    def stuck(self, layout, spans):
+        """On a loop, when every train starts within the margin of an occupied block ahead, none can ever move (each
+        holds a block another needs): the sentence that says so."""
+        if not layout.closed or len(spans) < 2:
+            return None
+        blocks = self.blocks(layout)
+        if all(self.clear_run(layout, blocks, spans, train_id, head)[1] <= self.params.margin_m
+               for train_id, head, _tail in spans):
+            return (f"fixed block: the {len(spans)} trains start on the {len(blocks)} blocks of {layout.name} each at "
+                    f"an occupied block, so none can move: give another block count (cbtc sim --blocks)")
+        return None
 
     def authority(self, sit: Situation) -> Authority:
         """The Authority of `sit.own`'s train from the occupancy in `sit.spans` and the speed code it received

@@ -12,12 +12,14 @@ The onboard braking curve to the end of authority stays the safety net under bot
 """
 
 import functools
+from bisect import bisect_left
 
 from cbtc.authority.control_laws import (
     departure_accelerations_mps2,
     departure_k_for,
     sync_deceleration_mps2,
 )
+from cbtc.authority.policy import MOVING_BLOCK
 from cbtc.authority.rules import (
     AuthorityParams,
     checked_gap_m,
@@ -31,9 +33,12 @@ _STANDING_MPS = 0.02
 
 
 class MovingBlockPolicy:
-    name = "moving_block"
+    """An AuthorityPolicy (cbtc.authority.policy): the train ahead's rear-most plausible tail bounds the authority."""
+    name = MOVING_BLOCK
+    title = "moving block"
     fast_reports = True   # the authority rests on the train ahead's reports: ask it for fast ones when followed
     needs_spans = False   # the train ahead alone limits the authority
+    uses_blocks = False
 
     def __init__(self, params: AuthorityParams = None, sync_tolerance_m: float = 0.01, takagi: bool = True):
         self.params = params or AuthorityParams()
@@ -98,6 +103,43 @@ class MovingBlockPolicy:
         if self.takagi:
             acc = self._departure_acc(sit, mode, acc)
         return Authority(distance_m, v_cap, acc, dec, mode, *why)
+
+    @staticmethod
+    def signal(sit: Situation) -> Situation:
+        return sit   # nothing goes through the wayside
+
+    @staticmethod
+    def blocks(_layout) -> tuple:
+        return ()
+
+    def protected_m(self, layout, train_id, spans) -> float:
+        """In truth: to the tail of the train ahead (on a line, of a train further on, or the end of the track), less
+        the safety margin; infinite for a train alone on a loop."""
+        head = next(h for t, h, _ in spans if t == train_id)
+        ahead = [layout.ahead_m(head, tail) for t, h, tail in spans if t != train_id and (layout.closed or h > head)]
+        if not layout.closed:
+            ahead.append(layout.length_m - head)
+        return min(ahead) - self.params.margin_m if ahead else float("inf")
+
+    def protected_all_m(self, layout, spans) -> list:
+        """protected_m of every train; on a loop each train's nearest tail ahead is found in the tails sorted once
+        (the same minimum, in n log n rather than n^2 a sample)."""
+        if not layout.closed or len(spans) < 2:
+            return [self.protected_m(layout, train_id, spans) for train_id, _h, _t in spans]
+        tails = sorted((tail, i) for i, (_id, _h, tail) in enumerate(spans))
+        keys = [tail for tail, _i in tails]
+        margin_m = self.params.margin_m
+        out = []
+        for i, (_id, head, _tail) in enumerate(spans):
+            k = bisect_left(keys, head)
+            if tails[k % len(tails)][1] == i:   # its own tail: the next one round
+                k += 1
+            out.append(layout.ahead_m(head, tails[k % len(tails)][0]) - margin_m)
+        return out
+
+    @staticmethod
+    def stuck(_layout, _spans):
+        return None   # a train behind another always gets the room up to it
 
     @staticmethod
     def _departure_acc(sit, mode, acc):

@@ -3,6 +3,7 @@ scenario file."""
 
 from dataclasses import replace
 
+from cbtc.authority.policy import FIXED_BLOCK, MOVING_BLOCK
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_paper_or_scenario_args, format_table, print_json, with_scenario
 from cbtc.commands.progress_bar import shown, simulation_bar
@@ -120,7 +121,7 @@ def run(args):
         by_period = [steady_following(layout, seed=args.seed, report_ms=ms) for ms in report_periods]
         by_speed = [steady_following(layout, seed=args.seed, leader_v_mps=v) for v in speeds]
         sweep = block_sweep(layout, counts, base=base) if counts else []
-    cuts = reductions(systems["moving_block"], systems["fixed_block"])
+    cuts = reductions(systems[MOVING_BLOCK], systems[FIXED_BLOCK])
     least_s = _least_headway(base)
     result = {"layout": layout.name, "seed": args.seed, "scenario": base.name, "systems": systems, "reductions": cuts,
               "paper": PAPER, "following": following, "following_by_report_ms": by_period,
@@ -128,7 +129,7 @@ def run(args):
               "block_sweep": sweep, "reference": base.reference, "alone": alone, "least_headway_s": least_s}
     if args.plot:
         from cbtc.experiments.plots import distance_time_png  # matplotlib: only when a plot is asked for
-        distance_time_png([recorders["fixed_block"], recorders["moving_block"]], args.plot,
+        distance_time_png([recorders[FIXED_BLOCK], recorders[MOVING_BLOCK]], args.plot,
                           ["fixed block (baseline)", "moving block + Takagi control"],
                           paper_note="paper: gap 1.89 m -> 0.91 m (-52 %), lap 15.72 s -> 6.84 s (-56 %)"
                           if base.name in (None, "paper_itb") else None)
@@ -136,8 +137,8 @@ def run(args):
         print_json(result)
         return 0
     print(title)
-    print(format_table([systems["fixed_block"], systems["moving_block"]], COLUMNS))
-    codes = systems["fixed_block"]["speed_code_telegrams"]
+    print(format_table([systems[FIXED_BLOCK], systems[MOVING_BLOCK]], COLUMNS))
+    codes = systems[FIXED_BLOCK]["speed_code_telegrams"]
     print(f"fixed-block speed codes as telegrams (bit-error rate {args.code_ber}): {codes['sent']} sent, "
           f"{codes['ok']} clean, {codes['corrected']} corrected, {codes['detected']} rejected (lowest code given), "
           f"{codes['undetected']} wrong")

@@ -1,6 +1,7 @@
 """`cbtc sim`: any number of virtual trains on any layout, each following the one ahead."""
 
 
+from cbtc.authority.policy import MOVING_BLOCK, policy_names
 from cbtc.commands import arg_types
 from cbtc.commands.common import SCENARIO_HELP, run_scenario_and_report, with_scenario
 from cbtc.sim import faults
@@ -21,7 +22,7 @@ def register(sub):
     p.add_argument("--duration", type=arg_types.seconds, default=None,
                    help="simulated seconds (default: 120, or the scenario's)")
     p.add_argument("--seed", type=arg_types.seed, default=None, help="random seed (default: 0, or the scenario's)")
-    p.add_argument("--policy", choices=("moving_block", "fixed_block"), default=None,
+    p.add_argument("--policy", choices=policy_names(), default=None,
                    help="authority policy (default: moving_block, or the scenario's)")
     p.add_argument("--blocks", type=arg_types.whole(2), default=None, metavar="N",
                    help="fixed block: N equal blocks instead of the layout's own "
@@ -42,7 +43,7 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-DEFAULTS = {"layout": "lego_oval", "trains": 3, "duration": 120.0, "seed": 0, "policy": "moving_block",
+DEFAULTS = {"layout": "lego_oval", "trains": 3, "duration": 120.0, "seed": 0, "policy": MOVING_BLOCK,
             "estimator": "ukf"}
 
 

@@ -9,6 +9,7 @@ publishes its retained `offline` status and leaves.
 import secrets
 import textwrap
 
+from cbtc.authority.policy import policy_names
 from cbtc.commands import arg_types
 from cbtc.commands.common import (
     ReportRecording,
@@ -34,7 +35,7 @@ def register(sub):
     add_connection_args(p)
     add_fleet_args(p)
     p.add_argument("--zone-id", default="zc1", help="zone id in cbtc/zc/<id>/status (default zc1)")
-    p.add_argument("--policy", choices=("moving_block", "fixed_block"), default=None,
+    p.add_argument("--policy", choices=policy_names(), default=None,
                    help="authority policy (default: moving_block, or the scenario's)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
                    help="position estimator (default: ukf, or the scenario's)")
@@ -68,7 +69,7 @@ def register(sub):
 def run(args):
     from cbtc.bus.clients import start_bus
     from cbtc.live.loop import LiveLoop
-    from cbtc.protocol import wire
+    from cbtc.protocol import wire_zc
     from cbtc.zone.factory import build_zone
 
     seed = secrets.randbits(31) if args.seed is None else args.seed
@@ -86,7 +87,7 @@ def run(args):
         latency_s = max(spec.profile.ips_latency_s for spec in config.trains)
         modem = IpsModem.open(args.ips_modem, beacons, None, loop.now_s, latency_s)
     bus = start_bus(args.mqtt_client, args.broker, f"zc-{args.zone_id}", loop.net,
-                    status_topic=wire.topic_zone_status(args.zone_id), username=username, password=password)
+                    status_topic=wire_zc.topic_zone_status(args.zone_id), username=username, password=password)
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
     if modem is not None:
@@ -99,11 +100,12 @@ def run(args):
         zc.clear_track(None if args.clear_track == "all" else args.clear_track, by="the operator (--clear-track)")
     recording = None
     if args.record:
-        recording = zc.report_sink = ReportRecording(args.record)
+        recording = ReportRecording(args.record)
+        zc.reports.subscribe(recording)
     zc.start()
     cycle = loop.scheduler.call_every(config.cycle_s, zc.cycle, start_s=loop.now_s() + 0.05)
-    loop.scheduler.call_every(args.status_period, lambda now_s: _status(zc, bus, loop, args, now_s),
-                              start_s=loop.now_s() + args.status_period)
+    zc.views.subscribe(lambda view: _status(view, bus, loop, args))
+    loop.scheduler.call_every(args.status_period, zc.publish_view, start_s=loop.now_s() + args.status_period)
     ids = [spec.train_id for spec in config.trains]
     print(f"zone {args.zone_id}: {len(ids)} trains {ids} on {layout.name}, broker "
           f"{bus.host}:{bus.port}, session {zc.session_id}", flush=True)
@@ -113,13 +115,13 @@ def run(args):
     loop.run(args.duration)
     # shutdown: no more cycles or event-driven answers that could extend an authority, then stop every train
     cycle.cancel()
-    bus.unsubscribe(wire.REPORT_FILTER)
+    bus.unsubscribe(wire_zc.REPORT_FILTER)
     zc.stop_all(loop.now_s())
     loop.pause(STOP_GRACE_S)
     bus.disconnect()
     if modem is not None:
         modem.close()
-    summary = _summary(zc, bus, loop)
+    summary = _summary(zc.view(loop.now_s()), bus, loop)
     if recording is not None:
         recording.close()
         print(f"zone {args.zone_id}: {recording.lines} reports recorded in {args.record}", flush=True)
@@ -162,16 +164,17 @@ def _check_spans(spans, layout):
                                                                      " forward (FROM below TO)"))
 
 
-def _status(zc, bus, loop, args, now_s):
-    """Every status period: the status table, and the status and summary files (a kill loses at most one period)."""
-    snapshot = zc.snapshot(now_s)
+def _status(view, bus, loop, args):
+    """Each ZoneView the zone publishes (every status period): the status table, and the status and summary files (a
+    kill loses at most one period)."""
     if args.status_json:
-        write_json(args.status_json, {"zone_id": args.zone_id, "session_id": zc.session_id, "t_s": round(now_s, 3),
-                                      "broker_connected": bus.connected, "trains": snapshot})
+        write_json(args.status_json, {"zone_id": view.zone_id, "session_id": view.session_id,
+                                      "t_s": round(view.t_s, 3), "broker_connected": bus.connected,
+                                      "trains": view.status()})
     if args.summary_json:
-        write_json(args.summary_json, _summary(zc, bus, loop, snapshot))
+        write_json(args.summary_json, _summary(view, bus, loop))
     if not args.quiet:
-        _print_status(snapshot, bus, now_s)
+        print("\n".join(status_table(view, bus.connected)), flush=True)
 
 
 STATUS_LEGEND = ("status, a row per train: s = head position along the track (m), v = speed (m/s), limit = end of "
@@ -182,23 +185,24 @@ STATUS_COLUMNS = (("train", 6, "<"), ("s m", 6, ">"), ("v m/s", 6, ">"), ("limit
                   ("mode", 5, "<"), ("next", 6, "<"), ("authority", 30, "<"), ("notes", 17, "<"))   # 100 columns
 
 
-def status_table(snapshot, broker_up, now_s):
-    """The zone's status as lines of at most 100 characters: a heading, then a row per train (STATUS_LEGEND)."""
-    lines = [f"t={now_s:.1f} s, broker {'up' if broker_up else 'DOWN'}",
+def status_table(view, broker_up):
+    """The status of a ZoneView as lines of at most 100 characters: a heading, then a row per train
+    (STATUS_LEGEND)."""
+    lines = [f"t={view.t_s:.1f} s, broker {'up' if broker_up else 'DOWN'}",
              " ".join(_cell(name, width, align) for name, width, align in STATUS_COLUMNS).rstrip()]
-    for train_id, row in snapshot.items():
-        age = row["data_age_s"]
-        data = "-" if age is None else (f"{age:.1f} STALE" if row["stale"] else f"{age:.2f}")
-        notes = list(row["faults"])
-        if row["ahead_m"] or row["behind_m"]:   # its sensors disagree: the authority covers both stories
-            notes.append(f"doubt-{row['behind_m']:.2f}+{row['ahead_m']:.2f}")
-        if row["speed_steps"]:   # the wheel's scale was re-opened: it slipped or spun
-            notes.append(f"slip x{row['speed_steps']}")
-        v_mps = row["v_mps"]
+    for row in view.trains:
+        age = row.data_age_s
+        data = "-" if age is None else (f"{age:.1f} STALE" if row.stale else f"{age:.2f}")
+        notes = list(row.faults)
+        if row.ahead_m or row.behind_m:   # its sensors disagree: the authority covers both stories
+            notes.append(f"doubt-{row.behind_m:.2f}+{row.ahead_m:.2f}")
+        if row.speed_steps:   # the wheel's scale was re-opened: it slipped or spun
+            notes.append(f"slip x{row.speed_steps}")
+        v_mps = row.v_mps
         if v_mps is not None and abs(v_mps) < 0.005:
             v_mps = 0.0   # standing: not "-0.00"
-        cells = (train_id, fmt(row["s_m"]), fmt(v_mps), fmt(row["limit_s_m"]), data,
-                 row["mode"] or "-", row["next_stop"] or "-", row["limited_by"] or "-", ",".join(notes) or "-")
+        cells = (row.train_id, fmt(row.s_m), fmt(v_mps), fmt(row.limit_s_m), data,
+                 row.mode or "-", row.next_stop or "-", row.limited_by or "-", ",".join(notes) or "-")
         lines.append(" ".join(_cell(str(value), width, align)
                               for value, (_name, width, align) in zip(cells, STATUS_COLUMNS)).rstrip())
     return lines
@@ -209,23 +213,7 @@ def _cell(text, width, align):
     return text.ljust(width) if align == "<" else text.rjust(width)
 
 
-def _print_status(snapshot, bus, now_s):
-    print("\n".join(status_table(snapshot, bus.connected, now_s)), flush=True)
-
-
-def _summary(zc, bus, loop, snapshot=None):
-    snapshot = zc.snapshot(loop.now_s()) if snapshot is None else snapshot
-    for train_id, row in snapshot.items():
-        state = zc.trains[train_id]
-        row["station_stops"] = state.dwells
-        row["stop_overruns"] = state.stop_overruns
-        row["commands_sent"] = state.cmd_seq
-        row["last_reject"] = state.last_reject
-        row["odometer_jumps"] = state.odometer_jumps
-        row["encoder_failures"] = state.encoder_failures
-        row["handling_failures"] = state.failures
-        row["measurements_dropped"] = state.measurements_dropped
-    return {"session_id": zc.session_id, "cycles": zc.cycles, "unknown_reports": zc.unknown_reports,
-            "invalid_reports": zc.invalid_reports, "broker_connects": bus.connects, "broker_losses": bus.losses,
-            "callback_errors": loop.net.errors, "trains": snapshot,
-            "refusals": {f"{train}/{klass}": n for (train, klass), n in sorted(zc.refusals.counts.items())}}
+def _summary(view, bus, loop):
+    """The `--summary-json` of a ZoneView, with the broker's and the network loop's counts."""
+    return {**view.summary(), "broker_connects": bus.connects, "broker_losses": bus.losses,
+            "callback_errors": loop.net.errors}

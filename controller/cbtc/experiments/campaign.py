@@ -20,6 +20,7 @@ import random
 import time
 from dataclasses import asdict, dataclass
 
+from cbtc.authority.policy import FIXED_BLOCK, MOVING_BLOCK
 from cbtc.errors import ConfigError
 from cbtc.sim import faults
 
@@ -87,7 +88,7 @@ class RunSpec:
     seed: int
     duration_s: float
     faults: tuple   # fault texts, NAME:param=value,... with every parameter written out
-    policy: str = "moving_block"
+    policy: str = MOVING_BLOCK
     blocks: int = None          # fixed block: that many equal blocks (None: the layout's own)
     start_gap_m: float = None   # the trains start one behind the other this far apart (None: spread evenly)
     scenario: str = None        # a scenario file or name: its layout, trains and faults (the drawn fault added)
@@ -97,7 +98,7 @@ class RunSpec:
         where = [f"--scenario {self.scenario}"] if self.scenario else [f"--layout {self.layout}",
                                                                        f"--trains {self.trains}"]
         words = ["cbtc sim", *where, f"--seed {self.seed}", f"--duration {self.duration_s:g}"]
-        if self.policy != "moving_block":
+        if self.policy != MOVING_BLOCK:
             words.append(f"--policy {self.policy}")
         if self.blocks is not None:
             words.append(f"--blocks {self.blocks}")
@@ -167,7 +168,7 @@ def packed_start(layout: str, n_trains: int, seed: int, duration_s: float) -> Ru
     from cbtc.layout_files import load_layout
     own = len(load_layout(layout).blocks)
     blocks = None if own >= n_trains + 2 else n_trains + 2
-    return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), "fixed_block", blocks, gap_m)
+    return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), FIXED_BLOCK, blocks, gap_m)
 
 
 def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids=None) -> tuple:

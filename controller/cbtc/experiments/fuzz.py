@@ -34,7 +34,7 @@ from cbtc.bus.clients import start_bus
 from cbtc.bus.paho_bus import PahoBus
 from cbtc.layout_files import load_layout
 from cbtc.live.loop import LiveLoop
-from cbtc.protocol import wire
+from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.sim.truth import TruthMonitor
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import paper_scenario, train_key
@@ -89,14 +89,14 @@ def extreme_report(rng, key, train_id, last, session_id):
     fields = dict(
         boot=last.get("boot", 1), seq=(last.get("seq", 0) + rng.choice([1, 1, 2, 1000, 2 ** 29])) & w,
         t_ms=_extreme(rng, 0, w, t, small=True) & w, odo_mm=_extreme(rng, -INT31, INT31, odo),
-        v_mmps=_extreme(rng, -20000, 20000), duty_pct=_extreme(rng, -100, 100), mode=rng.choice(wire.MODES),
+        v_mmps=_extreme(rng, -20000, 20000), duty_pct=_extreme(rng, -100, 100), mode=rng.choice(wire_zc.MODES),
         cseq=_extreme(rng, -1, w), csid=rng.choice([session_id, -1, _extreme(rng, -1, INT31)]),
         ips=rng.choice([None, [_extreme(rng, 0, w, t, small=True) & w, _extreme(rng, -10 ** 6, 10 ** 6),
                                _extreme(rng, -10 ** 6, 10 ** 6)]]),
         tags=rng.choice([[], [["04A1B2C3", _extreme(rng, -INT31, INT31, odo), _extreme(rng, 0, w, t, True) & w]]]),
         faults=rng.choice([[], [], ["enc_fail"]]),
         rng=rng.choice([None, [_extreme(rng, 0, w, t, small=True) & w, _extreme(rng, -100000, 10 ** 6)]]))
-    return wire.encode_report(key, train_id, **fields)
+    return fast_wire.encode_report(key, train_id, **fields)
 
 
 def bad_payload(rng, klass, traffic, keys, last_reports, session_id, replay_before_s):
@@ -115,7 +115,7 @@ def bad_payload(rng, klass, traffic, keys, last_reports, session_id, replay_befo
             i = rng.randrange(cut)
             return topic, payload[:i] + bytes([payload[i] ^ (1 << rng.randrange(8))]) + payload[i + 1:]
         body = payload[:cut] if cut > 0 else payload
-        return topic, wire.seal(rng.randbytes(16), topic, body)
+        return topic, fast_wire.seal(rng.randbytes(16), topic, body)
     if klass == "extreme":
         if topic.endswith("/report"):
             return topic, extreme_report(rng, keys[train_id], train_id, last_reports.get(train_id), session_id)
@@ -125,7 +125,7 @@ def bad_payload(rng, klass, traffic, keys, last_reports, session_id, replay_befo
         boot = rng.choice([last["boot"] ^ 1 or 2, last["boot"]])
         rseq = (last["seq"] - rng.choice([0, 20, 2 ** 20] if boot != last["boot"] else [2 ** 20, 2 ** 25])) \
             & wire.WRAP_MASK
-        return topic, wire.encode_command(keys[train_id], train_id, boot, rng.randrange(wire.WRAP_MASK),
+        return topic, fast_wire.encode_command(keys[train_id], train_id, boot, rng.randrange(wire.WRAP_MASK),
                                           rng.choice([session_id, rng.randrange(INT31)]), rseq, 5000, INT31, 10000,
                                           10000, 1, INT31, 20, wire.ODO_MM_PER_M_MIN)
     kind = rng.randrange(5)
@@ -161,22 +161,24 @@ class Watch:
         cycle = zc.cycle
         publish = zc.client.publish
 
+        handling = [None]   # the payload the zone is handling now
+
         def on_report(topic, payload):
-            state = zc.trains.get(topic.split("/")[2]) if topic.count("/") == 3 else None
-            before = None if state is None else state.report
+            handling[0] = payload
             try:
                 handle(topic, payload)
             except Exception:
                 self.uncaught += 1
-            if state is None or state.report is before:
-                return
+            handling[0] = None
+
+        def took(train_id, report, _recv_s):
             # taken: never garbage, a truncation or a forgery, and never a report taken before (a replay of one the
             # controller never took, its original refused or lost, is the board's own data, late)
-            klass = self.classes.get(bytes(payload))
-            taken = (state.train_id, state.report["boot"], state.report["seq"])
+            klass = None if handling[0] is None else self.classes.get(bytes(handling[0]))
+            taken = (train_id, report["boot"], report["seq"])
             if klass in ("garbage", "truncated", "forged") or taken in self._taken:
                 self.accepted_invalid += 1
-                self.examples.append(f"controller took a {klass or 'real'} report of train {state.train_id} "
+                self.examples.append(f"controller took a {klass or 'real'} report of train {train_id} "
                                      f"(boot {taken[1]} seq {taken[2]})")
             self._taken.add(taken)
 
@@ -188,11 +190,12 @@ class Watch:
 
         def recording_publish(topic, payload, *args, **kwargs):
             if topic.endswith("/cmd"):
-                msg = wire.decode_command(zc.trains[topic.split("/")[2]].setup.key, topic, payload)
+                msg = fast_wire.loads(payload[:payload.rfind(b"#")])   # the zone's own, sealed by it
                 self.sent[topic.split("/")[2]].add((msg["seq"], msg["rseq"], msg["eoa_mm"]))
             return publish(topic, payload, *args, **kwargs)
 
         zc.on_report = on_report
+        zc.reports.subscribe(took)
         self.cycle = guarded_cycle
         zc.client.publish = recording_publish
 
@@ -254,7 +257,7 @@ def _campaign(payloads, seed, url, progress, buses, client):
     rng = random.Random(seed)
     traffic = Traffic()
     traffic.now_s = loop.now_s
-    zc_bus = start_bus(client, url, "zc-fuzz", loop.net, status_topic=wire.topic_zone_status("fuzz"))
+    zc_bus = start_bus(client, url, "zc-fuzz", loop.net, status_topic=wire_zc.topic_zone_status("fuzz"))
     buses.append(zc_bus)
     trains = []
     for index, spec in enumerate(config.trains):
@@ -319,11 +322,13 @@ def _campaign(payloads, seed, url, progress, buses, client):
     moved_before = [t.travelled_m for t in trains]
     loop.run(RECOVERY_S)
     now_s = loop.now_s()
-    located = [zc.trains[t.train_id].estimator.localized for t in trains]
-    commanded = [st.answered_s is not None and now_s - st.answered_s < 1.0 for st in zc.trains.values()]
+    view = zc.view(now_s)
+    seen = [view.train(t.train_id) for t in trains]
+    located = [v.located for v in seen]
+    commanded = [v.command_age_s is not None and v.command_age_s < 1.0 for v in view.trains]
     in_session = [t.obu.sid == zc.session_id for t in trains]
     moved = [t.travelled_m - m > 0.5 for t, m in zip(trains, moved_before)]
-    healthy = all(st.estimator.healthy() for st in zc.trains.values())
+    healthy = all(v.estimate_finite for v in view.trains)
     truth = monitor.summary(now_s - t0)
     return {
         "payloads": sent["n"],
@@ -341,11 +346,10 @@ def _campaign(payloads, seed, url, progress, buses, client):
         "trains_moving_after": sum(moved),
         "picture_finite": healthy,
         "trains": [{"train": t.train_id, "located": loc, "moving_after": mv, "board_mode": t.obu.mode,
-                    "board_faults": list(t.obu.faults), "last_refusal": zc.trains[t.train_id].last_reject,
-                    "odometer_jumps": zc.trains[t.train_id].odometer_jumps,
-                    "encoder_failures": zc.trains[t.train_id].encoder_failures,
-                    "handling_failures": zc.trains[t.train_id].failures}
-                   for t, loc, mv in zip(trains, located, moved)],
+                    "board_faults": list(t.obu.faults), "last_refusal": v.last_reject,
+                    "odometer_jumps": v.odometer_jumps, "encoder_failures": v.encoder_failures,
+                    "handling_failures": v.handling_failures}
+                   for t, v, loc, mv in zip(trains, seen, located, moved)],
         "reports_refused": zc.refusals.total(),
         "commands_refused_onboard": sum(t.obu.rejected for t in trains),
         "seed": seed,

@@ -30,10 +30,8 @@ def faulty_leader_simulation(layout, seed, guard, duration_s=60.0, ranging=None,
     leader.encoder.scale_fault = encoder_fault
     leader.ips.offset_m = ips_offset_m
     p = leader.profile
-    state = sim.zc.trains[leader.train_id]
-    state.setup.profile = p.with_changes(v_noload_mps=p.v_noload_mps * encoder_fault,
-                                         accel_max_mps2=p.accel_max_mps2 * encoder_fault)
-    state.relocate(type(state.estimator)(layout, state.setup.profile))
+    sim.zc.retune(leader.train_id, p.with_changes(v_noload_mps=p.v_noload_mps * encoder_fault,
+                                                  accel_max_mps2=p.accel_max_mps2 * encoder_fault))
     sim.zc.use_measured_gap = False   # the onboard guard alone: the controller only raises its alarm
     return sim
 
@@ -48,7 +46,7 @@ def run_guard_case(layout, seed, guard, duration_s=60.0):
             "follower_collisions": recorder.collisions[1],
             "min_gap_m": summary["trains"][1]["min_gap_m"],
             "guard_trips": follower.obu.guard_trips,
-            "picture_alarms": sim.zc.trains[follower.train_id].gap_alarms,
+            "picture_alarms": sim.zc.view(sim.scheduler.now_s()).train(follower.train_id).gap_alarms,
             "simulated_s": round(summary["simulated_s"], 2)}
 
 

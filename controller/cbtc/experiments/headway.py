@@ -9,6 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from cbtc.authority.policy import FIXED_BLOCK, MOVING_BLOCK
 from cbtc.authority.rules import AuthorityParams, minimum_gap_m
 from cbtc.errors import ConfigError
 from cbtc.firmware import obu
@@ -103,16 +104,16 @@ def run_systems(base: ScenarioConfig, blocks=None, code_ber=0.0):
     the scenario's or the layout's own), whose speed codes reach the trains as telegrams with bit-error rate
     `code_ber`; returns (figures, recorders)."""
     results, recorders = {}, {}
-    for policy in ("moving_block", "fixed_block"):
+    for policy in (MOVING_BLOCK, FIXED_BLOCK):
         options = {}
-        if policy == "fixed_block":
+        if policy == FIXED_BLOCK:
             options = {"blocks": blocks or base.policy_options.get("blocks"), "code_ber": code_ber}
         sim = Simulation(replace(base, policy=policy, policy_options=options), keep_samples=True)
-        if policy == "fixed_block":
+        if policy == FIXED_BLOCK:
             sim.policy.track_circuits = _truth_spans(sim)
         recorders[policy] = sim.run()
         results[policy] = system_figures(recorders[policy])
-        if policy == "fixed_block":
+        if policy == FIXED_BLOCK:
             results[policy]["speed_code_telegrams"] = dict(sim.policy.codes.counts)
     return results, recorders
 
@@ -148,9 +149,9 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
     leader, follower = sim.trains
     basis = {}     # command seq sent to B -> (sample time of A's data behind it, combined sigma taken off)
 
-    def on_command(state, _now_s):
-        if state.train_id == follower.train_id:
-            basis[state.cmd_seq] = (state.leader_data_t_s, state.sigma_m)
+    def on_command(sent):
+        if sent.train_id == follower.train_id:
+            basis[sent.command.seq] = (sent.leader_data_t_s, sent.sigma_m)
 
     rows = []      # one per loop tick: truth and the command B's board obeys
 
@@ -161,7 +162,7 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
         rows.append((now_s, unit.cseq, (unit.eoa_mm - unit.odo_mm) / 1000.0 / wheel_per_m, leader.travelled_m,
                      follower.v_mps, gap_m))
 
-    sim.zc.on_command = on_command
+    sim.zc.commands.subscribe(on_command)
     sim.scheduler.call_every(config.loop_s, probe, start_s=0.0106)
     recorder = sim.run()
     t, cseq, eoa_ahead_m, leader_d_m, v_b, gap = (np.asarray(col, dtype=float) for col in zip(*rows))
@@ -228,7 +229,7 @@ def check_block_counts(layout, counts, seed=0, base: ScenarioConfig = None):
     base = base or paper_scenario(layout, seed=seed)
     for count in counts:
         try:
-            make_policy(replace(base, policy="fixed_block", policy_options={"blocks": int(count)}))
+            make_policy(replace(base, policy=FIXED_BLOCK, policy_options={"blocks": int(count)}))
         except ConfigError as exc:
             raise ConfigError(f"--blocks {count}: {exc}") from None
 
@@ -239,7 +240,7 @@ def block_sweep(layout, counts, seed=0, laps=3, estimator="ukf", base: ScenarioC
     base = base or paper_scenario(layout, seed=seed, laps=laps, duration_s=80.0 * laps, estimator=estimator)
     rows = []
     for count in counts:
-        sim = Simulation(replace(base, policy="fixed_block", policy_options={"blocks": int(count)}), keep_samples=True)
+        sim = Simulation(replace(base, policy=FIXED_BLOCK, policy_options={"blocks": int(count)}), keep_samples=True)
         sim.policy.track_circuits = _truth_spans(sim)
         figures = system_figures(sim.run())
         figures["blocks"] = int(count)

@@ -42,7 +42,7 @@ from cbtc.errors import BusError
 from cbtc.experiments.ping_pong import ping_pong
 from cbtc.layout_files import load_layout
 from cbtc.live.loop import LiveLoop
-from cbtc.protocol import wire
+from cbtc.protocol import wire, wire_zc
 from cbtc.railway.layout_dict import layout_from_dict
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import queue_scenario, train_key
@@ -254,7 +254,7 @@ def _measure(args, layout, config, url):
     probe = ZcProbe()
     keys = {s.train_id: train_key(args.seed, s.train_id) for s in config.trains}
     client = getattr(args, "mqtt_client", "lean")
-    zc_bus = start_bus(client, url, "zc-bench", loop.net, status_topic=wire.topic_zone_status("bench"))
+    zc_bus = start_bus(client, url, "zc-bench", loop.net, status_topic=wire_zc.topic_zone_status("bench"))
     ctx = multiprocessing.get_context("spawn")
     groups = [list(range(k, args.trains, args.train_procs)) for k in range(min(args.train_procs, args.trains))]
     pipes, children = [], []

@@ -10,7 +10,7 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-POLICY_WORDS = {"moving_block": "moving block", "fixed_block": "fixed block"}
+from cbtc.zone.factory import policy_class
 
 
 def run_title(config, policy=True) -> str:
@@ -20,7 +20,7 @@ def run_title(config, policy=True) -> str:
     what = f"scenario {config.name}" + (f" ({source})" if source and source != config.name else "") \
         if config.name else "paper scenario" if len(config.trains) == 2 and not config.faults else "simulation"
     faults = f", faults: {', '.join(f.name for f in config.faults)}" if config.faults else ""
-    how = f", {POLICY_WORDS.get(config.policy, config.policy)}" if policy else ""
+    how = f", {policy_class(config.policy).title}" if policy else ""
     return f"{what}: {len(config.trains)} trains on {config.layout.name}{how}, seed {config.seed}{faults}"
 
 
@@ -45,14 +45,14 @@ def distance_time_png(recorders, path, titles=None, paper_note=None):
 def distance_time_figure(recorders, titles=None, paper_note=None):
     """One column per run (`titles` names each, by default its policy; the figure's title says what was run): the
     train graph above, the gap head to tail below; every column on the same axes, so runs compare at a glance."""
-    titles = titles or [POLICY_WORDS.get(rec.sim.config.policy, rec.sim.config.policy) for rec in recorders]
+    titles = titles or [rec.sim.policy.title for rec in recorders]
     fig, axes = plt.subplots(2, len(recorders), figsize=(6.5 * len(recorders), 7.5), squeeze=False, sharex=True,
                              sharey="row", gridspec_kw={"height_ratios": [3, 2]})
     for col, (rec, title) in enumerate(zip(recorders, titles)):
         top, bottom = axes[0][col], axes[1][col]
         layout = rec.layout
         t = np.asarray(rec.t_s)
-        blocks = rec.sim.policy.blocks(layout) if rec.sim.config.policy == "fixed_block" else ()
+        blocks = rec.sim.policy.blocks(layout)
         for k, block in enumerate(blocks):
             top.axhline(block.start_m, color="0.6", lw=0.7, ls=":", label="block boundary" if k == 0 else None)
         for k, station in enumerate(layout.stations):

@@ -163,7 +163,7 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
     import logging
 
     from cbtc.layout_files import load_layout
-    from cbtc.protocol import wire
+    from cbtc.protocol import fast_wire, wire
     from cbtc.sim.simulation import FIRST_CYCLE_S, Simulation
     from cbtc.zone.config import queue_scenario, train_key
     from cbtc.zone.factory import build_zone
@@ -197,7 +197,7 @@ def controller_speed(n_trains: int = 50, duration_s: float = 10.0, seed: int = 0
         logger.setLevel(level)
     started = time.perf_counter()
     for _recv_s, topic, payload in heard:
-        wire.decode_report(keys[wire.train_id_of(topic)], topic, payload)
+        fast_wire.decode_report(keys[wire.train_id_of(topic)], topic, payload)
     wire_s = time.perf_counter() - started
     n = max(1, len(heard))
     return {"trains": n_trains, "layout": layout.name, "reports": len(heard), "commands": client.published,

@@ -1,15 +1,16 @@
-"""The controller's versions of six things the board's wire module does, each giving the same bytes or objects for
-less work on CPython: the HMAC, the seal, reading a message's JSON, writing a message's JSON, writing a report and
-writing a command. `cbtc.protocol` installs them into `wire`, so the zone and the virtual trains running the board's
-code use them; tests/test_wire.py holds them to the standard library's results and the board's. A simulation, which
-writes every message it reads, also keeps each message's payload and object from its writing to its reading
-(remember_sealed)."""
+"""The controller's codec: the board's wire functions (firmware/wire.py, wire_zc.py) giving the same bytes and
+objects for less work on CPython: the HMAC, the seal, reading and writing a message's JSON, decoding a report or a
+command and encoding either. The zone calls these; a virtual train hands this module to its OnboardUnit as its codec
+(the board's own is the wire module). tests/test_wire.py holds each to the standard library's results and the
+board's. A simulation, which writes every message it reads, also keeps each message's payload and object from its
+writing to its reading (remember_sealed)."""
 
 import hashlib
 import json
-import types
 from binascii import hexlify
 from json import encoder as _encoder
+
+from cbtc.firmware import messages, wire, wire_zc
 
 _KEYED = {}   # key -> (inner, outer): SHA-256 states that have taken the key's two padded blocks
 
@@ -62,7 +63,7 @@ def hmac_sha256(key, msg, _digest_name="sha256"):
     return outer.digest()
 
 
-def sealer(wire):
+def _sealer():
     """wire.seal, the same payload from hmac_sha256 in one piece; after remember_sealed(), a body sealed a second
     time on the same topic with the same key (its reader checking it) is looked up, not hashed again."""
     mac_bytes = wire._MAC_BYTES
@@ -79,8 +80,10 @@ def sealer(wire):
         return payload
 
     seal.__doc__ = wire.seal.__doc__
-    seal.board_seal = wire.seal   # the board's own, which tests/test_wire.py holds this one to
     return seal
+
+
+seal = _sealer()
 
 
 _scan_once = json.decoder.JSONDecoder().scan_once
@@ -106,7 +109,20 @@ def loads(data):
     return json.loads(data)
 
 
-JSON = types.SimpleNamespace(loads=loads)   # `json` as wire's decode_sealed reads a message with it
+
+
+def decode_command(key, topic, payload):
+    """wire.decode_command: the command dict of a sealed payload, validated; WireError with the reason otherwise."""
+    return _decode_command(key, topic, payload, _COMMAND_INTS, seal, loads)
+
+
+def decode_report(key, topic, payload):
+    """wire_zc.decode_report: the report dict of a sealed payload, validated; WireError with the reason otherwise."""
+    return _check_report(_decode_sealed(key, topic, payload, "rep", _REPORT_INTS, seal, loads), topic)
+
+
+_decode_command, _decode_sealed, _check_report = wire.decode_command, wire.decode_sealed, wire_zc.check_report
+_COMMAND_INTS, _REPORT_INTS = wire.COMMAND_INTS, wire_zc.REPORT_INTS
 
 
 _compact = json.JSONEncoder(separators=(",", ":"))
@@ -150,13 +166,13 @@ def _list_json(value, names):
     return dumps_compact(value), _ODD
 
 
-def report_encoder(wire, wire_zc):
+def _report_encoder():
     """wire.encode_report, giving the same payload from a template where the board's builds a dict and writes it as
     JSON (a third of the time): every virtual train seals a report 20 to 50 times a second. After remember_sealed(),
     the report a plain body stands for is remembered for loads."""
     board_encode, plain_id = wire.encode_report, wire_zc._plain_id
     modes, names = frozenset(wire_zc.MODES), frozenset(wire_zc.FAULTS)
-    version, seal, topic_report = wire.VERSION, wire.seal, wire.topic_report
+    version, topic_report = wire.VERSION, wire.topic_report
 
     def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips, tags, faults,
                       rng=None):
@@ -184,30 +200,33 @@ def report_encoder(wire, wire_zc):
         return seal(key, topic_report(train_id), body)
 
     encode_report.__doc__ = board_encode.__doc__
-    encode_report.board_encode = board_encode   # the board's own, which tests/test_wire.py holds this one to
     return encode_report
 
 
-def command_encoder(wire, wire_zc):
-    """wire_zc.encode_command, the same payload; after remember_sealed(), the command a plain body stands for is
-    remembered for loads (a zone sends one for most reports)."""
-    board_encode, plain_body = wire_zc.encode_command, wire_zc._plain_command_body
-    version, seal, topic_command = wire.VERSION, wire.seal, wire.topic_command
+def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS):
+    """wire_zc.command_encoder's encoder, the same payload sealed by this module's seal; after remember_sealed(), the
+    command a plain body stands for is remembered for loads (a zone sends one for most reports)."""
+    board_encode, plain_body = wire_zc.command_encoder(message, defaults, seal)
+    keys, fields_of = messages.names(message), wire_zc.fields_of
+    version, topic_command = wire.VERSION, wire.topic_command
 
-    def encode_command(key, train_id, boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2,
-                       stop_mm=None, rpt_ms=0, odo_mm_per_m=1000):
-        if stop_mm is None:
-            stop_mm = eoa_mm
-        ints = (boot, seq, sid, rseq, v_mmps, eoa_mm, ttl_ms, acc_mmps2, dec_mmps2, stop_mm, rpt_ms, odo_mm_per_m)
-        text = None if _WRITTEN is None else plain_body(train_id, ints)
+    def encode_command(key, train_id, *values, **named):
+        if _WRITTEN is None:
+            return board_encode(key, train_id, *values, **named)
+        ints = values if len(values) == len(keys) and not named and None not in values \
+            else fields_of(keys, defaults, values, named)
+        text = plain_body(train_id, ints)
         if text is None:
             return board_encode(key, train_id, *ints)
         body = text.encode()
-        _written(body, {"v": version, "k": "cmd", "id": train_id, "boot": boot, "seq": seq, "sid": sid, "rseq": rseq,
-                        "v_mmps": v_mmps, "eoa_mm": eoa_mm, "ttl_ms": ttl_ms, "acc": acc_mmps2, "dec": dec_mmps2,
-                        "stop_mm": stop_mm, "rpt_ms": rpt_ms, "odo_mm_per_m": odo_mm_per_m})
+        msg = {"v": version, "k": "cmd", "id": train_id}
+        msg.update(zip(keys, ints))
+        _written(body, msg)
         return seal(key, topic_command(train_id), body)
 
     encode_command.__doc__ = board_encode.__doc__
-    encode_command.board_encode = board_encode   # the board's own, which tests/test_wire.py holds this one to
     return encode_command
+
+
+encode_report = _report_encoder()
+encode_command = command_encoder()

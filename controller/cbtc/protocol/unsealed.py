@@ -4,7 +4,7 @@ Read only to learn where something on the track is (cbtc.zone.obstacles), never 
 alone: a board never reads another's reports, so this stays out of the firmware's protocol modules.
 """
 
-from cbtc.protocol import wire
+from cbtc.protocol import fast_wire, wire, wire_zc
 
 
 def peek_report(topic, payload):
@@ -16,11 +16,11 @@ def peek_report(topic, payload):
     payload = bytes(payload)
     cut = payload.rfind(b"#")
     try:
-        msg = wire.json.loads(payload[:cut] if cut >= 0 else payload)
+        msg = fast_wire.loads(payload[:cut] if cut >= 0 else payload)
     except ValueError:
         raise wire.WireError("payload on %s is not JSON" % topic) from None
     if not isinstance(msg, dict) or type(msg.get("v")) is not int or msg.get("v") != wire.VERSION \
             or msg.get("k") != "rep" or msg.get("id") != wire.train_id_of(topic):
         raise wire.WireError("payload on %s is not a report of version %d for its train" % (topic, wire.VERSION))
-    wire.check_ints(msg, wire.REPORT_INTS, topic)
-    return wire.check_report(msg, topic)
+    wire.check_ints(msg, wire_zc.REPORT_INTS, topic)
+    return wire_zc.check_report(msg, topic)

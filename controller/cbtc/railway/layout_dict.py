@@ -8,7 +8,7 @@ import math
 import os
 
 from cbtc.errors import LayoutError
-from cbtc.protocol import wire
+from cbtc.protocol import wire_zc
 from cbtc.railway.geometry import Path, forward_m
 from cbtc.railway.layout import Block, IpsFrame, Layout, Station, Tag, span_on_loop_m
 
@@ -214,7 +214,7 @@ def _tags(r, items, length, closed):
         if not isinstance(uid, str):
             r.fail(f"{where}.uid", f"must be a quoted hex string such as '04A1B2C3', got {uid!r} (unquoted, YAML "
                                    "reads hex digits as a number)")
-        if len(uid) not in wire.UID_HEX_LENGTHS or any(c not in "0123456789abcdefABCDEF" for c in uid):
+        if len(uid) not in wire_zc.UID_HEX_LENGTHS or any(c not in "0123456789abcdefABCDEF" for c in uid):
             r.fail(f"{where}.uid", f"must be a 4, 7 or 10-byte uid in hex (8, 14 or 20 digits) such as '04A1B2C3', "
                                    f"as the reader prints it; got {uid!r}")
         uid = uid.upper()

@@ -1,11 +1,10 @@
 # The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); a sample
-# reads the virtual trains, their boards and the zone's states as C types
+# reads the virtual trains and their boards as C types
 
 cimport cython
 
 from cbtc.firmware.obu cimport OnboardUnit
 from cbtc.sim.virtual_train cimport VirtualTrain
-from cbtc.zone.controller cimport TrainState
 
 cdef class Recorder:
     cdef dict __dict__
@@ -16,7 +15,7 @@ cdef class Recorder:
     cdef public object rolled_onto, _travelled_before, granted_beyond_m, room_m, _colliding, _overrun
     cdef public object _heard, _reports, _index, _sniffer
 
-    @cython.locals(train=VirtualTrain, state=TrainState)
+    @cython.locals(train=VirtualTrain)
     cpdef sample(self, now_s)
 
     @cython.locals(obu=OnboardUnit)

@@ -13,9 +13,9 @@ from collections import deque
 from math import inf, nan, sqrt
 
 from cbtc.authority.rules import following_reach_m
-from cbtc.protocol import wire
+from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.railway.geometry import circular_offset_m
-from cbtc.sim.truth import head_inside, protected_all_m, train_ahead
+from cbtc.sim.truth import head_inside, train_ahead
 from cbtc.zone.config import train_key
 
 STRANDED_S = 20.0
@@ -67,7 +67,7 @@ class Recorder:
         self._index = {t.train_id: i for i, t in enumerate(sim.trains)}
         self._sniffer = sim.broker.connect("recorder")
         if keep_reports:
-            self._sniffer.subscribe(wire.REPORT_FILTER, self._on_report)
+            self._sniffer.subscribe(wire_zc.REPORT_FILTER, self._on_report)
 
     def _kept(self, name):
         if not self.keep_samples:
@@ -110,7 +110,7 @@ class Recorder:
             key = train_key(self.sim.config.seed, self.sim.trains[i].train_id)
             for recv_s, topic, payload in heard:
                 try:
-                    self._reports[i].append((recv_s, wire.decode_report(key, topic, payload)))
+                    self._reports[i].append((recv_s, fast_wire.decode_report(key, topic, payload)))
                 except wire.WireError:
                     pass
             heard.clear()
@@ -118,6 +118,7 @@ class Recorder:
 
     def sample(self, now_s):
         layout = self.layout
+        zc = self.sim.zc
         trains = self.sim.trains
         keep = self.keep_samples
         first = self._t_first_s is None   # a train that starts inside a zone has not entered it
@@ -133,7 +134,7 @@ class Recorder:
         spans = [(t.train_id if k < len(trains) else f"stray {k}", head, tail)
                  for k, (t, head, tail) in enumerate(zip(everyone, heads, tails))]
         ahead = train_ahead(layout, heads)
-        protected = protected_all_m(self.sim.policy, layout, spans)
+        protected = self.sim.policy.protected_all_m(layout, spans)
         lap_m = layout.length_m if layout.closed else None
         any_moving = False
         for i, train in enumerate(trains):
@@ -164,8 +165,8 @@ class Recorder:
                 stats[0] += 1
                 stats[1] += gap_m
                 stats[2] = min(stats[2], gap_m)
-            state = self.sim.zc.trains[train.train_id]
-            constrained = state.safe_m is not None and state.safe_m < self._reach_m[i]
+            safe_m = zc.authority_m(train.train_id)
+            constrained = safe_m is not None and safe_m < self._reach_m[i]
             self._ever_constrained[i] = self._ever_constrained[i] or constrained
             if gap_m is not None and constrained:
                 self._following[i][0] += 1
@@ -178,12 +179,11 @@ class Recorder:
                     self.rolled_onto[i] += 1
             self._overrun[i] = over
             est = est_s_m = None
-            if state.report is not None and state.estimator.localized:
-                if keep:   # its sigma is kept too
-                    est = state.estimator.estimate(now_s)
-                    est_s_m = None if est is None else est.s_m
-                else:
-                    est_s_m = state.estimator.position_m(now_s)
+            if keep:   # its sigma is kept too
+                est = zc.estimate_at(train.train_id, now_s)
+                est_s_m = None if est is None else est.s_m
+            else:
+                est_s_m = zc.estimate_at(train.train_id, now_s, position_only=True)
             if est_s_m is not None and est_s_m == est_s_m:
                 err_m = circular_offset_m(est_s_m, heads[i], layout.loop_length_m)
                 stats = self._error[i]
@@ -273,10 +273,11 @@ class Recorder:
 
     def summary(self):
         trains = []
+        view = self.sim.zc.view(self.sim.scheduler.now_s())
         for i, train in enumerate(self.sim.trains):
             laps = self.lap_times(i)
             gap_n, gap_sum, gap_min = self._gap[i]
-            state = self.sim.zc.trains[train.train_id]
+            state = view.train(train.train_id)
             err = self.estimation_error(i)
             trains.append({
                 "train": train.train_id,
@@ -290,7 +291,7 @@ class Recorder:
                 "rolled_onto": self.rolled_onto[i],
                 "granted_beyond_m": _metres(self.granted_beyond_m[i]),
                 "stranded": self.stranded(i),
-                "station_stops": state.dwells,
+                "station_stops": state.station_stops,
                 "estimation_rmse_m": None if err is None else round(err["rmse_m"], 4),
                 "estimation_max_error_m": None if err is None else round(err["max_abs_m"], 4),
                 "commands_rejected_onboard": train.obu.rejected,

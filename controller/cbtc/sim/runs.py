@@ -3,13 +3,15 @@ so a campaign's printed command reproduces its run exactly."""
 
 from dataclasses import replace
 
+from cbtc.authority.policy import FIXED_BLOCK, MOVING_BLOCK
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
 from cbtc.sim import faults
 from cbtc.zone.config import queue_scenario
+from cbtc.zone.factory import policy_class
 
 
-def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = "moving_block",
+def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = MOVING_BLOCK,
                estimator: str = "ukf", blocks=None, fault_texts=(), start_gap_m=None):
     """The ScenarioConfig of `cbtc sim --layout LAYOUT --trains N ... --fault F...` (`layout`: a name, a file or a
     loaded Layout); ConfigError for any bad value, before anything runs."""
@@ -39,5 +41,5 @@ def scenario_config(scenario, seed: int = None, duration_s: float = None, blocks
 
 
 def _check_blocks(policy, blocks):
-    if blocks is not None and policy != "fixed_block":
-        raise ConfigError("--blocks is for --policy fixed_block: moving block has no blocks")
+    if blocks is not None and not policy_class(policy).uses_blocks:
+        raise ConfigError(f"--blocks is for --policy {FIXED_BLOCK}: {policy_class(policy).title} has no blocks")

@@ -9,7 +9,7 @@ import numpy as np
 
 from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
-from cbtc.protocol import fast_wire, wire
+from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.scheduler import VirtualScheduler
 from cbtc.sim import faults, progress
 from cbtc.sim.recorder import Recorder
@@ -37,7 +37,8 @@ class Simulation:
             raise ConfigError("scenario: at least one train is needed")
         self.scheduler = VirtualScheduler()
         self.broker = MockBroker(self.scheduler, seed=config.seed)
-        self.zc_client = self.broker.connect("zone-controller", will=(wire.topic_zone_status("zc1"), b"offline", True),
+        self.zc_client = self.broker.connect("zone-controller",
+                                             will=(wire_zc.topic_zone_status("zc1"), b"offline", True),
                                              up=config.controller_up, down=config.controller_down)
         keys = {spec.train_id: train_key(config.seed, spec.train_id) for spec in config.trains}
         self.zc = build_zone(config, keys, self.zc_client, self.scheduler.now_s)
@@ -56,8 +57,9 @@ class Simulation:
         if config.declare_start:
             for spec in config.trains:   # from truth, as an operator would at the start of a run (declare_start)
                 self.zc.declare_position(spec.train_id, layout.wrap(spec.s0_m), DECLARED_TOL_M)
-        if config.policy == "fixed_block":
-            self._check_not_gridlocked()
+        stuck = self.policy.stuck(layout, [(t.train_id, t.head_s, t.tail_s) for t in self.trains])
+        if stuck is not None:
+            raise ConfigError(stuck)
         self.recorder = Recorder(self, keep_reports, keep_samples)
         self._clear_track()
         self.zc.start()
@@ -69,7 +71,7 @@ class Simulation:
         self._cycle = self.scheduler.call_every(config.cycle_s, self.zc.cycle, start_s=FIRST_CYCLE_S)
         self._keys = keys
         self.zone_restarts = 0
-        self.report_sink = None   # callable(train_id, report, recv_s): every report the zone accepts (a recording)
+        self._report_sinks = []   # callables(train_id, report, recv_s): every report the zone accepts (a recording)
         self.scheduler.call_every(config.loop_s, self.recorder.sample, start_s=0.0105)
         self.tail_beacons = TailBeacons(self)
         if self.tail_beacons:
@@ -106,7 +108,8 @@ class Simulation:
         self.zc = build_zone(self.config, self._keys, self.zc_client, self.scheduler.now_s,
                              seed=self.config.seed + 1000 * self.zone_restarts)
         self.policy = self.zc.policy
-        self.zc.report_sink = self.report_sink
+        for sink in self._report_sinks:
+            self.zc.reports.subscribe(sink)
         self._clear_track()
         self.zc.start()
         self._cycle = self.scheduler.call_every(self.config.cycle_s, self.zc.cycle)
@@ -135,35 +138,20 @@ class Simulation:
     def wrap_zone(self, wrap):
         """Run the zone's report handling and cycles through `wrap(fn)` (cbtc bench sim clocks each call). Before
         `run()`."""
-        self.zc_client.unsubscribe(wire.REPORT_FILTER)
-        self.zc_client.subscribe(wire.REPORT_FILTER, wrap(self.zc.on_report))
+        self.zc_client.unsubscribe(wire_zc.REPORT_FILTER)
+        self.zc_client.subscribe(wire_zc.REPORT_FILTER, wrap(self.zc.on_report))
         self._cycle.cancel()
         self._cycle = self.scheduler.call_every(self.config.cycle_s, wrap(self.zc.cycle), start_s=FIRST_CYCLE_S)
 
     def silence_zone(self):
         """The zone hears no report and runs no cycle: the world alone, its trains standing (cbtc bench sim's
         reference). Before `run()`."""
-        self.zc_client.unsubscribe(wire.REPORT_FILTER)
+        self.zc_client.unsubscribe(wire_zc.REPORT_FILTER)
         self._cycle.cancel()
 
     def clients(self):
         """Every client of the mock broker in this run: the zone's, the trains', the strays', the recorder's."""
         return [self.zc_client] + [t.client for t in self.trains + self.strays] + [self.recorder._sniffer]
-
-    def _check_not_gridlocked(self):
-        """Fixed blocks on a loop: if every train starts within the margin of an occupied block ahead, none can ever
-        move (each holds a block another needs)."""
-        layout = self.config.layout
-        if not layout.closed or len(self.trains) < 2:
-            return
-        blocks = self.policy.blocks(layout)
-        spans = [(t.train_id, t.head_s, t.tail_s) for t in self.trains]
-        margin_m = self.config.params.margin_m
-        if all(self.policy.clear_run(layout, blocks, spans, t.train_id, t.head_s)[1] <= margin_m
-               for t in self.trains):
-            raise ConfigError(f"fixed block: the {len(self.trains)} trains start on the {len(blocks)} blocks of "
-                              f"{layout.name} each at an occupied block, so none can move: give another block count "
-                              f"(cbtc sim --blocks)")
 
     def _ranging(self, index):
         """The train-to-train ranging driver of train `index` (None unless the config asks for ranging)."""
@@ -181,7 +169,8 @@ class Simulation:
 
     def record_reports(self, sink) -> None:
         """Hand every report the zone accepts (this one and any that replaces it) to `sink`."""
-        self.report_sink = self.zc.report_sink = sink
+        self._report_sinks.append(sink)
+        self.zc.reports.subscribe(sink)
 
     def run(self):
         config = self.config

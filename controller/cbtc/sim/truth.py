@@ -1,10 +1,6 @@
 """Truth of virtual trains: which train is ahead of which, collisions, and how far each board moved past its end
 of authority. The recorder of a simulated run and the virtual trains on a real broker both count collisions here."""
 
-from bisect import bisect_left
-
-from cbtc.authority.fixed_block import FixedBlockPolicy
-
 
 def train_ahead(layout, heads_m):
     """{i: j}: the index of the train ahead of train i, for trains with heads at `heads_m` (on a line, the front train
@@ -23,44 +19,6 @@ def train_ahead(layout, heads_m):
 def head_inside(layout, head_s_m, ahead_tail_s_m, ahead_length_m) -> bool:
     """A head inside the span of the train ahead: a collision (on a line, a head still behind that tail is not)."""
     return 0.0 <= layout.ahead_m(ahead_tail_s_m, head_s_m) <= ahead_length_m
-
-
-def protected_m(policy, layout, train_id, spans) -> float:
-    """True distance (m) from `train_id`'s head to the point its authority under `policy` protects, less S_M: the true
-    tail of the train ahead (moving block), or the entry of the first truly occupied block ahead or the tail of a train
-    in its own block (fixed block). `spans` lists (train_id, head_s, tail_s) in truth. Negative: the protected zone is
-    entered (an authority overrun)."""
-    head = next(h for t, h, _ in spans if t == train_id)
-    # on a line, only trains whose heads are further on are ahead, and the end of the track bounds the front one
-    ahead = [layout.ahead_m(head, tail) for t, h, tail in spans if t != train_id and (layout.closed or h > head)]
-    margin_m = policy.params.margin_m
-    if not layout.closed:
-        ahead.append(layout.length_m - head)
-    if not isinstance(policy, FixedBlockPolicy):
-        return min(ahead) - margin_m if ahead else float("inf")
-    blocks = policy.blocks(layout)
-    to_end_m = layout.ahead_m(head, blocks[policy.index_at(blocks, layout, head)].end_m)
-    in_block = [d for d in ahead if d < to_end_m]
-    if in_block:
-        return min(in_block) - margin_m
-    return policy.clear_run(layout, blocks, spans, train_id, head)[1] - margin_m
-
-
-def protected_all_m(policy, layout, spans) -> list:
-    """`protected_m` of every train of `spans`, in their order. On a loop under moving block each train's nearest
-    tail ahead is found in the tails sorted once (the same minimum, in n log n rather than n^2 a sample)."""
-    if not layout.closed or isinstance(policy, FixedBlockPolicy) or len(spans) < 2:
-        return [protected_m(policy, layout, train_id, spans) for train_id, _h, _t in spans]
-    tails = sorted((tail, i) for i, (_id, _h, tail) in enumerate(spans))
-    keys = [tail for tail, _i in tails]
-    margin_m = policy.params.margin_m
-    out = []
-    for i, (_id, head, _tail) in enumerate(spans):
-        k = bisect_left(keys, head)
-        if tails[k % len(tails)][1] == i:   # its own tail: the next one round
-            k += 1
-        out.append(layout.ahead_m(head, tails[k % len(tails)][0]) - margin_m)
-    return out
 
 
 class TruthMonitor:

@@ -9,7 +9,7 @@ nothing may assume the two sides share a clock.
 import hashlib
 
 from cbtc.firmware import obu as obu_module
-from cbtc.protocol import wire
+from cbtc.protocol import fast_wire, wire
 from cbtc.railway import physics
 from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid, SimTrainLine
 
@@ -74,7 +74,7 @@ class VirtualTrain:
         digest = hashlib.sha256(b"boot/%d/" % self.boots + self._key).digest()
         boot_id = (int.from_bytes(digest[:4], "big") & wire.BOOT_MAX) or 1
         unit = obu_module.OnboardUnit(self.train_id, self._key, boot_id, self.encoder, self.ips, self.rfid,
-                                      self.motor, self._publish, self._config, self._ranging)
+                                      self.motor, self._publish, self._config, self._ranging, fast_wire)
         if self.train_line is not None:
             unit.integrity = self.train_line
         return unit

@@ -5,6 +5,7 @@ import hashlib
 import math
 from dataclasses import dataclass, field
 
+from cbtc.authority.policy import MOVING_BLOCK
 from cbtc.authority.rules import AuthorityParams
 from cbtc.bus.mock_broker import LinkProfile
 from cbtc.errors import ConfigError
@@ -29,7 +30,7 @@ class ScenarioConfig:
     laps: int = None                 # stop early once every train has completed this many laps
     cycle_s: float = 0.1             # zone controller period
     loop_s: float = 0.02             # onboard loop period
-    policy: str = "moving_block"     # or "fixed_block" (cbtc.authority.fixed_block)
+    policy: str = MOVING_BLOCK       # the name of an AuthorityPolicy (cbtc.zone.factory.POLICIES)
     estimator: str = "ukf"           # or "odometry"
     params: AuthorityParams = field(default_factory=AuthorityParams)
     link: LinkProfile = field(default_factory=lambda: LinkProfile(latency_s=0.004, jitter_s=0.003, loss=0.01))

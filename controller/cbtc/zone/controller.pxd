@@ -9,7 +9,7 @@ cdef class TrainState:
     cdef public object setup, train_id, estimator, rank, on_change, clock
     cdef public object report, report_recv_s, report_t_s, boots, next_stop, leaving
     cdef public object dwell_until_s, odo_moved, still_since_s, dwells, limit_s, safe_m
-    cdef public object limited_by, eoa_mm, cmd_seq, cmd_fields, reports_rejected, last_reject
+    cdef public object limited_by, eoa_mm, cmd_seq, command, reports_rejected, last_reject
     cdef public object stop_overruns, restarts, answered_s, fast_until_s, fast_need_m, leader_data_t_s
     cdef public object sigma_m, authority, mode, rng_gap, gap_alarm, gap_alarms
     cdef public object deaf_since_s, encoder_failed, encoder_failures, odometer_jumps, measurements_dropped, failures
@@ -23,7 +23,7 @@ cdef class ZoneController:
     cdef public object layout, client, now_fn, policy, params, cycle_s
     cdef public object event_driven, zone_id, _rng, session_id, _estimator_factory, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
-    cdef public object use_measured_gap, on_command, report_sink, fast_slots, obstacles, _balises
+    cdef public object use_measured_gap, commands, reports, views, fast_slots, obstacles, _balises
     cdef public object _stranger_length_m, _stranger_v_mps, _parted, swept
 
     @cython.locals(report=dict, previous=dict)

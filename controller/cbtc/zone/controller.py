@@ -19,7 +19,7 @@ import hashlib
 import logging
 import random
 from bisect import bisect_left, bisect_right, insort
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from heapq import heappop, heappush
 from math import isfinite
 
@@ -35,7 +35,8 @@ from cbtc.authority.values import Situation, TrainPicture
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import BoardClock, span_offsets_m
 from cbtc.firmware import obu
-from cbtc.protocol import unsealed, wire
+from cbtc.protocol import fast_wire, unsealed, wire, wire_zc
+from cbtc.protocol.records import Command
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.ips_frame import ips_to_track
 from cbtc.railway.physics import braking_distance_m
@@ -44,6 +45,7 @@ from cbtc.zone import plausibility
 from cbtc.zone.boots import TWIN_ALIVE_S, BootTracker
 from cbtc.zone.obstacles import Obstacle, room_m
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
+from cbtc.zone.supervision import CommandSent, Subscribers, TrainView, ZoneView
 from cbtc.zone.swept import SweptTrack
 from cbtc.zone.tails import TailWatch
 
@@ -98,7 +100,7 @@ class TrainState:
         self.limited_by = None       # what limited its last command: the authority's reason, or why it is held
         self.eoa_mm = None
         self.cmd_seq = 0
-        self.cmd_fields = None       # what the newest command sent says (wire.encode_command's fields but seq)
+        self.command = None          # the newest command sent (a records.Command)
         self.reports_rejected = 0
         self.last_reject = ""
         self.stop_overruns = 0
@@ -257,8 +259,9 @@ class ZoneController:
         self.cycles = 0
         self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.ranging.transponder.RangingSensor.sigma_m)
         self.use_measured_gap = True  # False: measured gaps only raise the alarm, the authority ignores them
-        self.on_command = None        # callable(state, now_s) after each command is published (supervision, tests)
-        self.report_sink = None       # callable(train_id, report, recv_s) for each accepted report (a recording)
+        self.commands = Subscribers("commands")   # each gets a CommandSent after each command is published
+        self.reports = Subscribers("reports")     # each gets (train_id, report, recv_s) for each accepted report
+        self.views = Subscribers("views")         # each gets the ZoneView of each publish_view()
         # Reports a second this controller is sized for (measured with `cbtc bench latency`: 20 trains at 20 Hz on
         # two shared cores, its own compute p99 under 2.5 ms a report; 1000 a second saturated it). Every train
         # reports at the board's own rate; what is left pays for fast reports, each fast train costing the difference.
@@ -274,8 +277,8 @@ class ZoneController:
         if not self.swept.spans:
             log.warning("the track is not cleared: no authority reaches track no located train has swept; once only "
                         "this zone's trains stand on it, say so (cbtc zone --clear-track all, or FROM-TO stretches)")
-        self.client.subscribe(wire.REPORT_FILTER, self.on_report)
-        self.client.publish(wire.topic_zone_status(self.zone_id), b"online", retain=True)
+        self.client.subscribe(wire_zc.REPORT_FILTER, self.on_report)
+        self.client.publish(wire_zc.topic_zone_status(self.zone_id), b"online", retain=True)
 
     def declare_position(self, train_id: str, s_m: float, tol_m: float) -> None:
         """An operator declares that `train_id`'s head stands within `tol_m` of track position `s_m`: its first
@@ -416,7 +419,7 @@ class ZoneController:
 
     def _take_report(self, state, payload, recv_s):
         try:
-            report = wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
+            report = fast_wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
         except wire.AuthError:
             self.invalid_reports += 1
             self._refuse(state, "wrong key", "its reports fail authentication", recv_s,
@@ -506,8 +509,8 @@ class ZoneController:
         self._moved.add(state)
         if not self.swept.complete and state.estimator.localized:
             self._sweep(state)
-        if self.report_sink is not None:
-            self._record(state, report, recv_s)
+        if self.reports:
+            self.reports.publish(state.train_id, report, recv_s)
         if report.get("rng") is not None:
             state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
         if self.event_driven and state.estimator.localized:
@@ -563,15 +566,6 @@ class ZoneController:
         state.relocate(self._estimator_factory(self.layout, state.setup.profile))
         if state.doubt_span is not None:
             state.estimator.keep_doubt(*state.doubt_span)
-
-    def _record(self, state, report, recv_s):
-        """Hand an accepted report to `report_sink` (a recording); a sink that fails is dropped, the zone goes on."""
-        try:
-            self.report_sink(state.train_id, report, recv_s)
-        except Exception as exc:
-            log.error("recording reports failed (%s: %s): recording stopped, the zone goes on", type(exc).__name__,
-                      exc)
-            self.report_sink = None
 
     @staticmethod
     def _filter_healthy(state):
@@ -679,9 +673,7 @@ class ZoneController:
             "split" if "split" in state.report["flt"] else None   # the board brakes it for good
         if all_located and not state.boots.twins and blind is None and braked is None:
             sit = self._situation(state, leader, now_s)
-            if self.policy.needs_spans:   # fixed block: the wayside sends the code through the rails first
-                block_i, code = self.policy.code(sit)
-                sit = replace(sit, received_code=self.policy.codes.transmit(block_i, code))
+            sit = self.policy.signal(sit)   # fixed block: the wayside sends its speed code through the rails first
             auth = self._clear_of_obstacles(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
             if not self.swept.complete:
                 auth = self._clear_of_unknown(state, auth)
@@ -958,13 +950,13 @@ class ZoneController:
         stop_mm = eoa_mm if stop_m is None else \
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
                 _SCALE_LOW, state.odometer_per_m_low(0.0))) * 1000.0)))
-        if stop_m is not None and state.cmd_fields is not None and report["v_mmps"] < 2 * _STANDING_MMPS:
-            held_boot, _sid, _rseq, _v, held_eoa_mm, _ttl, _acc, _dec, held_stop_mm = state.cmd_fields[:9]
-            if (held_boot == report["boot"] and held_stop_mm < held_eoa_mm and held_stop_mm <= eoa_mm
-                    and abs(stop_mm - held_stop_mm) <= _STOP_KEPT_MM):
+        held = state.command
+        if stop_m is not None and held is not None and report["v_mmps"] < 2 * _STANDING_MMPS:
+            if (held.boot == report["boot"] and held.stop_mm < held.eoa_mm and held.stop_mm <= eoa_mm
+                    and abs(stop_mm - held.stop_mm) <= _STOP_KEPT_MM):
                 # braking onto the mark: a target a mm or two off the one the board holds is the estimate's noise,
                 # and moving it would start a train the board has just stopped there (it holds that near it)
-                stop_mm = held_stop_mm
+                stop_mm = held.stop_mm
         est = state.newest_estimate()
         if est is None:
             state.limit_s = None
@@ -973,19 +965,21 @@ class ZoneController:
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
         rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) or self._leaving_soon(state, now_s) \
             else 0
-        fields = (report["boot"], self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm,
-                  int(self.params.ttl_s * 1000), max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm,
-                  rpt_ms, max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))  # floored
-        if fields == state.cmd_fields:
+        command = Command(
+            boot=report["boot"], seq=wire.wrap_add(state.cmd_seq, 1), sid=self.session_id, rseq=report["seq"],
+            v_mmps=int(max(0.0, v_cap_mps) * 1000), eoa_mm=eoa_mm, ttl_ms=int(self.params.ttl_s * 1000),
+            acc=max(1, int(acc_mps2 * 1000)), dec=max(1, int(dec_mps2 * 1000)), stop_mm=stop_mm, rpt_ms=rpt_ms,
+            odo_mm_per_m=max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))  # floored
+        if held is not None and command._replace(seq=held.seq) == held:
             # the board holds this very command (same report, so the same expiry): sending it again changes nothing
             return
-        state.cmd_fields = fields
-        state.cmd_seq = wire.wrap_add(state.cmd_seq, 1)
-        boot, sid, rseq, *rest = fields
-        payload = wire.encode_command(state.setup.key, state.train_id, boot, state.cmd_seq, sid, rseq, *rest)
+        state.command = command
+        state.cmd_seq = command.seq
+        payload = fast_wire.encode_command(state.setup.key, state.train_id, *command)
         self.client.publish(wire.topic_command(state.train_id), payload)
-        if self.on_command is not None:
-            self.on_command(state, now_s)
+        if self.commands:
+            self.commands.publish(CommandSent(state.train_id, now_s, command, state.limited_by, state.leader_data_t_s,
+                                              state.sigma_m, state.estimator.confirmed))
 
     def _fast_reports(self, state, now_s):
         """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
@@ -1070,36 +1064,57 @@ class ZoneController:
 
     # --- supervision ------------------------------------------------------------------------------------------------
 
+    def view(self, now_s: float) -> ZoneView:
+        """The frozen picture of the zone and every train at `now_s` (the supervision read-model)."""
+        return ZoneView(self.zone_id, self.session_id, now_s, tuple(self._train_view(st, now_s)
+                                                                    for st in self.trains.values()),
+                        self.cycles, self.unknown_reports, self.invalid_reports,
+                        tuple(sorted(self.refusals.counts.items())))
+
+    def publish_view(self, now_s: float) -> ZoneView:
+        """The view at `now_s`, handed to every subscriber of `views`."""
+        view = self.view(now_s)
+        self.views.publish(view)
+        return view
+
     def snapshot(self, now_s: float) -> dict:
-        """A JSON-ready picture of every train, as the controller sees it. A train not heard from for longer than
-        `max_leader_age_s` is `stale`: its position is where its last report put it, not extrapolated."""
-        out = {}
-        for train_id, st in self.trains.items():
-            age_s = None if st.report_recv_s is None else max(0.0, now_s - st.report_recv_s)
-            stale = age_s is not None and age_s > self.params.max_leader_age_s
-            est = None
-            if st.report is not None and st.estimator.localized:
-                est = st.estimator.estimate(st.report_t_s if stale else now_s)
-            out[train_id] = {
-                "located": est is not None,
-                "data_age_s": None if age_s is None else round(age_s, 3),
-                "stale": stale,
-                "s_m": None if est is None else round(est.s_m, 4),
-                "v_mps": None if est is None else round(est.v_mps, 4),   # at its last report when stale
-                "sigma_s_m": None if est is None else round(est.sigma_s_m, 4),
-                "limit_s_m": None if st.limit_s is None else round(st.limit_s, 4),
-                "leader_data_age_s": None if st.leader_data_t_s is None else round(now_s - st.leader_data_t_s, 3),
-                "limited_by": st.limited_by,
-                "mode": None if st.report is None else st.report["mode"],
-                "faults": [] if st.report is None else list(st.report["flt"]),
-                "next_stop": st.next_stop or None,
-                "reports_rejected": st.reports_rejected,
-                "ahead_m": None if est is None else round(est.ahead_m, 4),
-                "behind_m": None if est is None else round(est.behind_m, 4),
-                "gated_fixes": st.estimator.rejected_ips,
-                # reported speeds that changed faster than the train can: the wheel began or stopped slipping
-                "speed_steps": st.estimator.speed_steps,
-                "gap_measured_m": None if st.rng_gap is None else round(st.rng_gap[1], 4),
-                "gap_disagrees": st.gap_alarm,
-            }
-        return out
+        """{train id: its JSON-ready status row} at `now_s` (TrainView.status)."""
+        return self.view(now_s).status()
+
+    def _train_view(self, st, now_s):
+        age_s = None if st.report_recv_s is None else max(0.0, now_s - st.report_recv_s)
+        stale = age_s is not None and age_s > self.params.max_leader_age_s
+        est = None
+        if st.report is not None and st.estimator.localized:
+            est = st.estimator.estimate(st.report_t_s if stale else now_s)
+        located = est is not None
+        return TrainView(
+            st.train_id, located, age_s, stale, est.s_m if located else None, est.v_mps if located else None,
+            est.sigma_s_m if located else None, est.ahead_m if located else None, est.behind_m if located else None,
+            st.limit_s, st.limited_by, None if st.leader_data_t_s is None else now_s - st.leader_data_t_s,
+            None if st.report is None else st.report["mode"], () if st.report is None else tuple(st.report["flt"]),
+            st.next_stop or None, st.reports_rejected, st.estimator.rejected_ips, st.estimator.speed_steps,
+            None if st.rng_gap is None else st.rng_gap[1], st.gap_alarm, st.dwells, st.stop_overruns, st.cmd_seq,
+            st.last_reject, st.odometer_jumps, st.encoder_failures, st.failures, st.measurements_dropped,
+            None if st.answered_s is None else now_s - st.answered_s, st.estimator.healthy(), st.safe_m,
+            st.gap_alarms)
+
+    def authority_m(self, train_id: str):
+        """How far `train_id`'s safety limit allowed at its newest command (m; None: held): what a simulation's
+        monitor reads every sample, without the cost of a view."""
+        return self.trains[train_id].safe_m
+
+    def estimate_at(self, train_id: str, now_s: float, position_only: bool = False):
+        """`train_id`'s estimate at `now_s` (an Estimate; its head position alone, cheaper, when `position_only`), or
+        None while it has none: what a simulation's monitor compares with truth every sample."""
+        state = self.trains[train_id]
+        if state.report is None or not state.estimator.localized:
+            return None
+        return state.estimator.position_m(now_s) if position_only else state.estimator.estimate(now_s)
+
+    def retune(self, train_id: str, profile) -> None:
+        """Take `profile` for `train_id` from now (an operator's correction, or an experiment's wrong one) and
+        start its estimate again from nothing."""
+        state = self.trains[train_id]
+        state.setup.profile = profile
+        state.relocate(type(state.estimator)(self.layout, profile))

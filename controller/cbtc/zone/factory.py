@@ -1,29 +1,42 @@
 """Builds a zone from a config: its policy, its estimators and the ZoneController itself, the same for a simulated
 and a live run."""
 
+from cbtc.authority.fixed_block import FixedBlockPolicy
 from cbtc.authority.moving_block import MovingBlockPolicy
+from cbtc.authority.policy import AuthorityPolicy, policy_names
 from cbtc.errors import ConfigError
 from cbtc.zone.config import ScenarioConfig
 from cbtc.zone.controller import TrainSetup, ZoneController
 
+# the one place a policy is picked by its name (a scenario's `policy`, `--policy`)
+POLICIES = {cls.name: cls for cls in (MovingBlockPolicy, FixedBlockPolicy)}
+assert tuple(POLICIES) == policy_names()
 
-def make_policy(config: ScenarioConfig):
-    if config.policy == "moving_block":
-        return MovingBlockPolicy(config.params)
-    if config.policy == "fixed_block":
-        from cbtc.authority.fixed_block import FixedBlockPolicy
-        try:
-            policy = FixedBlockPolicy(config.params, **{"seed": config.seed, **config.policy_options})
-            blocks = policy.blocks(config.layout)
-        except ValueError as exc:
-            raise ConfigError(f"fixed block: {exc}") from None
-        if config.layout.closed and len(blocks) <= len(config.trains):
-            raise ConfigError(f"fixed block: {len(config.trains)} trains on the {len(blocks)} blocks of loop "
-                              f"{config.layout.name} cannot move (each needs a clear block ahead): give more blocks "
-                              f"than trains (--blocks), each well longer than a train and its margin, since a train "
-                              f"across a block boundary holds two")
-        return policy
-    raise ConfigError(f"unknown policy {config.policy!r}: use moving_block or fixed_block")
+
+def policy_class(name: str):
+    """The AuthorityPolicy class called `name`; ConfigError naming the choices otherwise."""
+    try:
+        return POLICIES[name]
+    except (KeyError, TypeError):
+        raise ConfigError(f"unknown policy {name!r}: use {' or '.join(POLICIES)}") from None
+
+
+def make_policy(config: ScenarioConfig) -> AuthorityPolicy:
+    """The policy `config` names, with its options; ConfigError when its blocks do not fit the layout's trains."""
+    cls = policy_class(config.policy)
+    if not cls.uses_blocks:
+        return cls(config.params, **config.policy_options)
+    try:
+        policy = cls(config.params, **{"seed": config.seed, **config.policy_options})
+        blocks = policy.blocks(config.layout)
+    except ValueError as exc:
+        raise ConfigError(f"{cls.title}: {exc}") from None
+    if config.layout.closed and len(blocks) <= len(config.trains):
+        raise ConfigError(f"{cls.title}: {len(config.trains)} trains on the {len(blocks)} blocks of loop "
+                          f"{config.layout.name} cannot move (each needs a clear block ahead): give more blocks "
+                          f"than trains (--blocks), each well longer than a train and its margin, since a train "
+                          f"across a block boundary holds two")
+    return policy
 
 
 def make_estimator_factory(name: str):
