@@ -965,14 +965,15 @@ class ZoneController:
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
         rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) or self._leaving_soon(state, now_s) \
             else 0
-        command = Command(
-            boot=report["boot"], seq=wire.wrap_add(state.cmd_seq, 1), sid=self.session_id, rseq=report["seq"],
-            v_mmps=int(max(0.0, v_cap_mps) * 1000), eoa_mm=eoa_mm, ttl_ms=int(self.params.ttl_s * 1000),
-            acc=max(1, int(acc_mps2 * 1000)), dec=max(1, int(dec_mps2 * 1000)), stop_mm=stop_mm, rpt_ms=rpt_ms,
-            odo_mm_per_m=max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))  # floored
-        if held is not None and command._replace(seq=held.seq) == held:
+        # the command's fields after boot and seq, in the table's order (Command: sid, rseq, v_mmps, eoa_mm, ttl_ms,
+        # acc, dec, stop_mm, rpt_ms, odo_mm_per_m), as a tuple: a zone builds one for every answer it makes
+        rest = (self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
+                max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms,
+                max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))   # floored
+        if held is not None and held[2:] == rest and held.boot == report["boot"]:
             # the board holds this very command (same report, so the same expiry): sending it again changes nothing
             return
+        command = Command(report["boot"], wire.wrap_add(state.cmd_seq, 1), *rest)
         state.command = command
         state.cmd_seq = command.seq
         payload = fast_wire.encode_command(state.setup.key, state.train_id, *command)
