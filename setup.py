@@ -1,6 +1,6 @@
 """The compiled build: the modules a report, a command and a simulated tick run through, on a simulated or a real
 broker, compiled by Cython from their unchanged Python source (the same code; `cbtc bench build` measures it beside
-the source: 1.7x on a simulation, 1.96x on a zone replaying reports). The .pxd files beside some of them make their
+the source). The .pxd files beside some of them make their
 hottest classes C types that hold the attributes their methods set in slots, so that self.x is a field read rather
 than a type and a dict lookup; any other attribute still goes to the instance __dict__. Some also type the arguments
 of hot methods (a train's state, a report, the filter's states and events, the recorder's trains), so that their
@@ -81,7 +81,7 @@ class OptionalBuildExt(build_ext):
 
     def build_extensions(self):
         if self.compiler.compiler_type == "unix":
-            # -O3 (Python's own level) without debug information: 50 s on 2 cores, and 5-8 % faster than -O1's 30 s
+            # -O3 (Python's own level) without debug information: faster code for a longer build (cbtc bench build)
             for ext in self.extensions:
                 ext.extra_compile_args = ["-O3", "-g0"]
         super().build_extensions()

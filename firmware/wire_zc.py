@@ -116,7 +116,7 @@ def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS
     def plain_body(train_id, ints):
         """A command's JSON text for `ints` (its fields in the table's order) when every one is an int and the id
         plain: the bytes json.dumps writes for them (an int's repr; an id of letters, digits, '_' and '-'), made at
-        a fifth of its cost, as a zone sends a command for most reports. None otherwise."""
+        for less than json.dumps costs, as a zone sends a command for most reports. None otherwise."""
         if _plain_id(train_id) and set(map(type, ints)) == _INT_ONLY:
             return template % ((VERSION, train_id) + ints)
         return None

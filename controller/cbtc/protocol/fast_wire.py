@@ -45,7 +45,7 @@ def _written(body, msg):
 
 def hmac_sha256(key, msg, _digest_name="sha256"):
     """HMAC-SHA256 of `msg` with `key` (RFC 2104), as hmac.digest gives it, from SHA-256 states that have taken the
-    key's padded blocks once: each message costs two copies and two short hashes, half of hmac.digest's time (it
+    key's padded blocks once: each message costs two copies and two short hashes, less than hmac.digest (it
     hashes both padded blocks again every message; a zone seals and checks two or three messages a report). The
     padding is wire.hmac_sha256_hashlib's, written inline there: as a function of its own it costs the board 224 B
     of a heap at its limit."""
@@ -168,8 +168,8 @@ def _list_json(value, names):
 
 def _report_encoder():
     """wire.encode_report, giving the same payload from a template where the board's builds a dict and writes it as
-    JSON (a third of the time): every virtual train seals a report 20 to 50 times a second. After remember_sealed(),
-    the report a plain body stands for is remembered for loads."""
+    JSON, which costs more: every virtual train seals a report 20 to 50 times a second. After remember_sealed(), the
+    report a plain body stands for is remembered for loads."""
     board_encode, plain_id = wire.encode_report, wire_zc._plain_id
     modes, names = frozenset(wire_zc.MODES), frozenset(wire_zc.FAULTS)
     version, topic_report = wire.VERSION, wire.topic_report
