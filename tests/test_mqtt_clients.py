@@ -3,6 +3,7 @@ own thread, paho on a NetLoop, the lean client on a NetLoop): refusal with no br
 reconnect with resubscribe; routing and TCP_NODELAY on paho's thread, and paho on one NetLoop. The lean client's
 own tests are in test_lean_bus.py."""
 
+import os
 import socket
 import subprocess
 import sys
@@ -220,3 +221,87 @@ def test_one_net_loop_reads_handles_and_answers_in_its_own_thread(mosquitto):
         train.disconnect()
         zc.disconnect()
     assert threading.active_count() == threads_before
+
+
+@pytest.mark.mosquitto
+@pytest.mark.parametrize("kind", Clients.KINDS)
+def test_keepalive_keeps_a_publishing_client_connected_and_finds_a_broker_that_went_silent(mosquitto, kind):
+    """A client that only publishes stays connected (it pings when nothing was read for the keepalive period); a
+    broker that stops answering (stopped, its socket still open) is called lost within about 1.5 keepalive periods,
+    and once it answers again the client is back."""
+    import signal
+
+    clients = Clients(kind)
+    bus = clients.start(mosquitto.url, "train-A", keepalive_s=1, reconnect_max_s=0.5)
+    try:
+        for _ in range(44):   # 2.2 s of reports, 50 ms apart
+            bus.publish("cbtc/train/A/report", b"r")
+            clients.pause(0.05)
+        assert bus.connected and bus.losses == 0
+        os.kill(mosquitto.proc.pid, signal.SIGSTOP)
+        try:
+            started = time.monotonic()
+            clients.wait_for(lambda: not bus.connected, 6.0, "the silent broker to be called lost")
+            assert time.monotonic() - started < 4.0 and bus.losses == 1
+        finally:
+            os.kill(mosquitto.proc.pid, signal.SIGCONT)
+        clients.wait_for(lambda: bus.connected, 10.0, "the way back")
+    finally:
+        bus.disconnect()
+
+
+@pytest.mark.mosquitto
+@pytest.mark.parametrize("kind", Clients.KINDS)
+def test_status_goes_at_qos_1_and_reaches_a_qos_1_subscriber_as_qos_1(mosquitto, kind):
+    import paho.mqtt.client as paho
+
+    got = []
+    raw = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id="raw-watcher")
+    raw.on_message = lambda _c, _u, msg: got.append((msg.topic, msg.payload, msg.qos, msg.retain))
+    raw.connect("127.0.0.1", mosquitto.port)
+    raw.subscribe("cbtc/train/+/status", qos=1)
+    raw.loop_start()
+    clients = Clients(kind)
+    try:
+        time.sleep(0.2)
+        bus = clients.start(mosquitto.url, "train-A", status_topic="cbtc/train/A/status")
+        clients.wait_for(lambda: got, 3.0, "the status")
+        assert got[0] == ("cbtc/train/A/status", b"online", 1, False)
+        assert topic_qos("cbtc/train/A/status") == 1 and topic_qos("cbtc/train/A/report") == 0
+        bus.disconnect()
+    finally:
+        raw.loop_stop()
+        raw.disconnect()
+
+
+@pytest.mark.mosquitto
+@pytest.mark.parametrize("kind", Clients.KINDS)
+def test_reconnect_attempts_back_off_to_their_ceiling(mosquitto, kind):
+    """While the broker is away the client tries again at growing intervals, from reconnect_min_s up to
+    reconnect_max_s: a listener on the broker's port that accepts and closes counts the attempts."""
+    clients = Clients(kind)
+    bus = clients.start(mosquitto.url, "sub", reconnect_min_s=0.1, reconnect_max_s=0.8)
+    attempts = []
+    try:
+        mosquitto.kill()
+        clients.wait_for(lambda: not bus.connected, 5.0, "the loss to be noticed")
+        listener = socket.socket()
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind(("127.0.0.1", mosquitto.port))
+        listener.listen(16)
+        listener.settimeout(0.01)
+        deadline = time.monotonic() + 4.0
+        while time.monotonic() < deadline:
+            try:
+                conn, _ = listener.accept()
+                attempts.append(time.monotonic())
+                conn.close()
+            except (socket.timeout, BlockingIOError):
+                pass
+            clients.pause(0.01)
+        listener.close()
+        gaps = [b - a for a, b in zip(attempts, attempts[1:])]
+        assert 3 <= len(attempts) <= 20, attempts
+        assert max(gaps) <= 0.8 * 1.5 + 0.3 and gaps[-1] > 1.5 * gaps[0], gaps   # growing, capped
+    finally:
+        bus.disconnect()

@@ -277,8 +277,9 @@ class LeanBus(BusClient):
             log.warning("%s: broker %s:%d refused the connection: %s", self.client_id, self.host, self.port,
                         self.refusal)
             self._close()
-            if self.connects:   # refused on a reconnect: keep trying, as after a loss
+            if self.connects:   # refused on a reconnect: keep trying, as after a loss, less and less often
                 self._retry_due_s = time.monotonic() + self._retry_delay_s
+                self._retry_delay_s = min(self._retry_delay_s * 2.0, self._reconnect_s[1])
             return
         self._connected = True
         self.connects += 1
@@ -303,6 +304,8 @@ class LeanBus(BusClient):
             log.warning("%s: lost the broker (%s); reconnecting", self.client_id, why)
         self._close()
         self._retry_due_s = time.monotonic() + self._retry_delay_s
+        # the next loss before a CONNACK waits twice as long: a broker that accepts and drops is not hammered
+        self._retry_delay_s = min(self._retry_delay_s * 2.0, self._reconnect_s[1])
 
     def _close(self) -> None:
         was = self._sock

@@ -187,6 +187,8 @@ class PahoBus(BusClient):
     def _lost_check(self) -> None:
         if self._client.socket() is None and self._retry_due_s is None and self._net is not None:
             self._retry_due_s = time.monotonic() + self._retry_delay_s
+            # the next loss before a CONNACK waits twice as long (the delay is the least again on a connect)
+            self._retry_delay_s = min(self._retry_delay_s * 2.0, self._reconnect_s[1])
             self._net.socket_changed(self)
 
     # --- BusClient ---------------------------------------------------------------------------------------------
