@@ -100,13 +100,18 @@ class Simulation:
         self.broker.kill_client("zone-controller")
         self._cycle.cancel()
 
-    def restart_zone(self):
-        """A new zone controller process: a new session, knowing nothing of the trains until they report."""
+    def restart_zone(self, hand_over: bool = False):
+        """A new zone controller process: a new session, knowing nothing of the trains until they report; or, with
+        `hand_over`, taking each train over from the old zone's record of it (cbtc.zone.handover)."""
         self.zone_restarts += 1
         self._cycle.cancel()
+        now_s = self.scheduler.now_s()
+        records = [self.zc.export_train(t.train_id, now_s) for t in self.trains] if hand_over else []
         self.zc_client.reconnect()
         self.zc = build_zone(self.config, self._keys, self.zc_client, self.scheduler.now_s,
                              seed=self.config.seed + 1000 * self.zone_restarts)
+        for record in records:
+            self.zc.import_train(record, now_s)
         self.policy = self.zc.policy
         for sink in self._report_sinks:
             self.zc.reports.subscribe(sink)

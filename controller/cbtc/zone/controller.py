@@ -43,6 +43,7 @@ from cbtc.railway.physics import braking_distance_m
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone import plausibility
 from cbtc.zone.boots import TWIN_ALIVE_S, BootTracker
+from cbtc.zone.handover import TrainRecord, declare_handed, export_train, import_train
 from cbtc.zone.obstacles import Obstacle, room_m
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
 from cbtc.zone.supervision import CommandSent, Subscribers, TrainView, ZoneView
@@ -101,6 +102,7 @@ class TrainState:
         self.eoa_mm = None
         self.cmd_seq = 0
         self.command = None          # the newest command sent (a records.Command)
+        self.handed = None           # the TrainRecord another zone handed this train over with, until its first report
         self.reports_rejected = 0
         self.last_reject = ""
         self.stop_overruns = 0
@@ -489,6 +491,8 @@ class ZoneController:
                 if report["tags"]:   # stamped with an odometer of either frame: none places the fresh estimate
                     state.measurements_dropped += len(report["tags"])
                     report = dict(report, tags=[])
+            if state.handed is not None:
+                declare_handed(state, report)
             state.estimator.on_report(report, state.clock)
             if state.estimator.localized and not state.estimator.doubt_kept:
                 state.doubt_span = None   # a balise has confirmed where it is
@@ -1112,6 +1116,20 @@ class ZoneController:
         if state.report is None or not state.estimator.localized:
             return None
         return state.estimator.position_m(now_s) if position_only else state.estimator.estimate(now_s)
+
+    def export_train(self, train_id: str, now_s: float) -> TrainRecord:
+        """What another zone needs to take `train_id` over at `now_s`, as a value (cbtc.zone.handover)."""
+        return export_train(self._known(train_id), now_s)
+
+    def import_train(self, record: TrainRecord, now_s: float) -> None:
+        """Take over the train of `record` (exported by another zone, or by this zone before a restart) at `now_s`."""
+        import_train(self._known(record.train_id), record, now_s, Command)
+
+    def _known(self, train_id):
+        state = self.trains.get(train_id)
+        if state is None:
+            raise ConfigError(f"train {train_id!r} is not in this zone; its trains: {', '.join(self.trains)}")
+        return state
 
     def retune(self, train_id: str, profile) -> None:
         """Take `profile` for `train_id` from now (an operator's correction, or an experiment's wrong one) and
