@@ -9,7 +9,7 @@ import pytest
 from cbtc.cli import main
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_layout
-from cbtc.sim import faults
+from cbtc.sim import fault_effects, faults
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import queue_scenario
 
@@ -35,7 +35,7 @@ def run(text, until_s, encoder_channels=2):
 
 
 def test_every_fault_has_a_schedule_and_its_parameters_are_checked():
-    assert set(faults.FAULTS) == set(faults._SCHEDULE)
+    assert set(faults.FAULTS) == set(fault_effects.SCHEDULE)
     assert str(faults.parse("link_loss:train=T2,loss=0.5")) == \
         "link_loss:at_s=20.0,burst_s=0.0,direction=both,duration_s=5.0,loss=0.5,train=T2"
     for text, says in (("nope", "unknown; known: boot_moved, broker_outage"),

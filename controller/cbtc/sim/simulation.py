@@ -11,7 +11,7 @@ from cbtc.bus.mock_broker import MockBroker
 from cbtc.errors import ConfigError
 from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.scheduler import VirtualScheduler
-from cbtc.sim import faults, progress
+from cbtc.sim import fault_effects, progress
 from cbtc.sim.recorder import Recorder
 from cbtc.sim.tail_beacons import TailBeacons
 from cbtc.sim.virtual_train import VirtualTrain
@@ -76,7 +76,7 @@ class Simulation:
         self.tail_beacons = TailBeacons(self)
         if self.tail_beacons:
             self.scheduler.call_every(config.loop_s, self.tail_beacons.tick, start_s=0.0107)
-        faults.inject(self, config.faults)
+        fault_effects.inject(self, config.faults)
 
     def add_stray(self, train_id, key, s0_m, profile):
         """A board put on the track at `s0_m` standing, reporting as `train_id` with `key`, which the zone was not
