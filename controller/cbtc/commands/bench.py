@@ -29,6 +29,12 @@ def register(sub):
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     bench_sub = p.add_subparsers(dest="bench_command", metavar="WHAT")
     bench_sub.required = True
+    _latency_parser(bench_sub)
+    _sim_parsers(bench_sub)
+    _other_parsers(bench_sub)
+
+
+def _latency_parser(bench_sub):
     lat = bench_sub.add_parser("latency", help="report -> command round trip through the broker",
                                description=module_doc("cbtc.experiments.latency"),
                                formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -51,6 +57,9 @@ def register(sub):
     add_mqtt_client_arg(lat)
     lat.add_argument("--json", action="store_true", help="print the figures as JSON")
     lat.set_defaults(func=run_latency)
+
+
+def _sim_parsers(bench_sub):
     sim = _speed_parser(bench_sub, "sim", "simulated seconds per wall second, beside a do-nothing controller")
     sim.add_argument("--layout", type=arg_types.layout, default=None,
                      help="one layout (with --trains); default: the paper's 2 trains on itb_square, 11 on lego_oval, "
@@ -74,6 +83,9 @@ def register(sub):
                      help="simulated seconds of reports replayed (default 10)")
     ctl.add_argument("--seed", type=arg_types.seed, default=0)
     ctl.set_defaults(func=run_controller)
+
+
+def _other_parsers(bench_sub):
     mem = _speed_parser(bench_sub, "memory", "a simulation's memory growth per simulated hour, beside keeping samples")
     mem.add_argument("--trains", type=arg_types.train_count, default=6, help="trains on lego_oval (default 6)")
     mem.add_argument("--duration", type=arg_types.seconds, default=600.0,

@@ -136,6 +136,16 @@ def run(args):
     if args.json:
         print_json(result)
         return 0
+    _print_comparison(args, title, base, result)
+    return 0
+
+
+def _print_comparison(args, title, base, result):
+    """The comparison of `result` (run's figures) as tables and lines of text."""
+    systems, cuts, least_s, alone = result["systems"], result["reductions"], result["least_headway_s"], \
+        result["alone"]
+    following, sweep = result["following"], result["block_sweep"]
+    by_period, by_speed = result["following_by_report_ms"], result["following_by_speed"]
     print(title)
     print(format_table([systems[FIXED_BLOCK], systems[MOVING_BLOCK]], COLUMNS))
     codes = systems[FIXED_BLOCK]["speed_code_telegrams"]
@@ -172,7 +182,6 @@ def run(args):
         print(format_table(sweep, [("blocks", "blocks"), ("block_length_m", "block m")] + COLUMNS[1:]))
     if args.plot:
         print(f"distance-time plot: {args.plot}")
-    return 0
 
 
 def _least_headway(base):

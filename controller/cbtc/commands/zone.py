@@ -113,7 +113,14 @@ def run(args):
         print(textwrap.fill(STATUS_LEGEND, 100), flush=True)
     loop.install_signal_handlers()
     loop.run(args.duration)
-    # shutdown: no more cycles or event-driven answers that could extend an authority, then stop every train
+    return _shut_down(args, zc, bus, loop, cycle, modem, recording)
+
+
+def _shut_down(args, zc, bus, loop, cycle, modem, recording):
+    """No more cycles or event-driven answers that could extend an authority; every train stopped; the zone offline,
+    the recording closed and the summary written."""
+    from cbtc.protocol import wire_zc
+
     cycle.cancel()
     bus.unsubscribe(wire_zc.REPORT_FILTER)
     zc.stop_all(loop.now_s())

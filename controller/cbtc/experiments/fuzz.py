@@ -321,6 +321,12 @@ def _campaign(payloads, seed, url, progress, buses, client):
     loop.run(end_s - t0 + 0.5)
     moved_before = [t.travelled_m for t in trains]
     loop.run(RECOVERY_S)
+    return _figures(zc, watch, monitor, trains, moved_before, sent, attack_s, loop, t0, seed)
+
+
+def _figures(zc, watch, monitor, trains, moved_before, sent, attack_s, loop, t0, seed):
+    """What a fuzz run found, once its trains have had RECOVERY_S to recover: what got through, truth, and whether
+    the zone still locates, commands and moves every train."""
     now_s = loop.now_s()
     view = zc.view(now_s)
     seen = [view.train(t.train_id) for t in trains]
