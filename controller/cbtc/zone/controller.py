@@ -193,6 +193,16 @@ class TrainState:
             self.on_change(self)
 
 
+def fast_report_slots(report_budget_hz: float, n_trains: int, params: AuthorityParams) -> int:
+    """How many trains may report fast at once within `report_budget_hz`, the reports a second the controller is
+    sized for (`cbtc bench latency` measures what it takes): every train reports at the board's own rate, and what is
+    left pays for fast reports, each fast train costing the difference."""
+    base_hz = 1000.0 / obu.DEFAULTS["report_ms"]
+    extra_hz = 1000.0 / params.fast_report_ms - base_hz
+    spare_hz = report_budget_hz - base_hz * n_trains
+    return max(0, int(spare_hz // extra_hz)) if extra_hz > 0 else n_trains
+
+
 class ZoneController:
     def __init__(self, layout, trains, client, now_fn, policy, params: AuthorityParams = None,
                  estimator_factory=None, cycle_s: float = 0.1, zone_id: str = "zc1", seed: int = 0,
@@ -228,19 +238,7 @@ class ZoneController:
             from cbtc.estimation.ukf_estimator import UkfEstimator as estimator_factory
         self._estimator_factory = estimator_factory
         self.trains = {}
-        for setup in trains:
-            wire.check_train_id(setup.train_id)
-            if setup.train_id in self.trains:
-                raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
-            for name in setup.stops:
-                layout.station(name)  # raises LayoutError naming the known stations
-            state = TrainState(setup, estimator_factory(layout, setup.profile), rank=len(self.trains),
-                               on_change=self._moved.add)
-            # the profile and the parameters are fixed: the distances that follow from them, worked out once
-            state.reach_m = following_reach_m(setup.profile)
-            state.horizon_m = horizon_m(setup.profile, self.params)
-            state.track_m = layout.length_m
-            self.trains[setup.train_id] = state
+        self._add_trains(trains)
         self._unanswered = set(self.trains.values())
         self._unheard = len(self.trains)
         if not layout.tags:
@@ -264,13 +262,24 @@ class ZoneController:
         self.commands = Subscribers("commands")   # each gets a CommandSent after each command is published
         self.reports = Subscribers("reports")     # each gets (train_id, report, recv_s) for each accepted report
         self.views = Subscribers("views")         # each gets the ZoneView of each publish_view()
-        # Reports a second this controller is sized for (measured with `cbtc bench latency`: 20 trains at 20 Hz on
-        # two shared cores, its own compute p99 under 2.5 ms a report; 1000 a second saturated it). Every train
-        # reports at the board's own rate; what is left pays for fast reports, each fast train costing the difference.
-        base_hz = 1000.0 / obu.DEFAULTS["report_ms"]
-        extra_hz = 1000.0 / self.params.fast_report_ms - base_hz
-        spare_hz = report_budget_hz - base_hz * len(self.trains)
-        self.fast_slots = max(0, int(spare_hz // extra_hz)) if extra_hz > 0 else len(self.trains)
+        self.fast_slots = fast_report_slots(report_budget_hz, len(self.trains), self.params)
+
+    def _add_trains(self, setups):
+        """A TrainState for each TrainSetup, its fixed distances worked out once; ValueError or LayoutError naming a
+        bad id, a train configured twice or a stop the layout does not have."""
+        layout = self.layout
+        for setup in setups:
+            wire.check_train_id(setup.train_id)
+            if setup.train_id in self.trains:
+                raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
+            for name in setup.stops:
+                layout.station(name)  # raises LayoutError naming the known stations
+            state = TrainState(setup, self._estimator_factory(layout, setup.profile), rank=len(self.trains),
+                               on_change=self._moved.add)
+            state.reach_m = following_reach_m(setup.profile)
+            state.horizon_m = horizon_m(setup.profile, self.params)
+            state.track_m = layout.length_m
+            self.trains[setup.train_id] = state
 
     # --- shell: bus ----------------------------------------------------------------------------------------------
 
