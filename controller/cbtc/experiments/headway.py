@@ -131,6 +131,16 @@ def reductions(moving, fixed):
             "lap_reduction_pct": pct(moving["mean_lap_s"], fixed["mean_lap_s"])}
 
 
+def _following_config(layout, seed, leader_v_mps, duration_s, estimator, report_ms, fast):
+    """Train A, slowed to `leader_v_mps`, 1.5 m ahead of train B (profile `fast`), both reporting every `report_ms`
+    when it is given."""
+    params = AuthorityParams() if report_ms is None else AuthorityParams(fast_report_ms=int(report_ms))
+    trains = [TrainSpec("A", layout.wrap(1.5), (), fast.with_changes(v_max_mps=leader_v_mps)),
+              TrainSpec("B", 0.0, (), fast)]
+    return ScenarioConfig(layout=layout, seed=seed, duration_s=duration_s, estimator=estimator, params=params,
+                          trains=trains, obu_overrides=None if report_ms is None else {"report_ms": int(report_ms)})
+
+
 def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s=25.0, estimator="ukf",
                      report_ms=None):
     """Train B (line speed 0.6 m/s) catches up with a slower train A and follows it: achieved gap against the
@@ -138,13 +148,8 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
     measured in the run (`overhead_budget_m`, see _overhead_budget). `report_ms`: every report at this period, the
     fast ones the controller asks of a followed train included (None: the defaults, 50 ms and 20 ms when followed)."""
     fast = TrainProfile()
-    slow = fast.with_changes(v_max_mps=leader_v_mps)
-    start_b = 0.0
-    start_a = layout.wrap(start_b + 1.5)
-    params = AuthorityParams() if report_ms is None else AuthorityParams(fast_report_ms=int(report_ms))
-    config = ScenarioConfig(layout=layout, seed=seed, duration_s=duration_s, estimator=estimator, params=params,
-                            trains=[TrainSpec("A", start_a, (), slow), TrainSpec("B", start_b, (), fast)],
-                            obu_overrides=None if report_ms is None else {"report_ms": int(report_ms)})
+    config = _following_config(layout, seed, leader_v_mps, duration_s, estimator, report_ms, fast)
+    params = config.params
     sim = Simulation(config)
     leader, follower = sim.trains
     basis = {}     # command seq sent to B -> (sample time of A's data behind it, combined sigma taken off)
