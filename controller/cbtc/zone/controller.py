@@ -44,7 +44,7 @@ from cbtc.zone.boots import TWIN_ALIVE_S
 from cbtc.zone.handover import TrainRecord, declare_handed, export_train, import_train
 from cbtc.zone.obstacles import Obstacle, room_m
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
-from cbtc.zone.supervision import CommandSent, Subscribers, TrainView, ZoneView
+from cbtc.zone.supervision import CommandSent, Subscribers, ZoneView, train_view
 from cbtc.zone.swept import SweptTrack
 from cbtc.zone.tails import TailWatch
 from cbtc.zone.train_state import TrainSetup, TrainState  # noqa: F401  (TrainSetup: the zone's callers import it here)
@@ -951,7 +951,7 @@ class ZoneController:
 
     def view(self, now_s: float) -> ZoneView:
         """The frozen picture of the zone and every train at `now_s` (the supervision read-model)."""
-        return ZoneView(self.zone_id, self.session_id, now_s, tuple(self._train_view(st, now_s)
+        return ZoneView(self.zone_id, self.session_id, now_s, tuple(train_view(st, now_s, self.params.max_leader_age_s)
                                                                     for st in self.trains.values()),
                         self.cycles, self.unknown_reports, self.invalid_reports,
                         tuple(sorted(self.refusals.counts.items())))
@@ -965,24 +965,6 @@ class ZoneController:
     def snapshot(self, now_s: float) -> dict:
         """{train id: its JSON-ready status row} at `now_s` (TrainView.status)."""
         return self.view(now_s).status()
-
-    def _train_view(self, st, now_s):
-        age_s = None if st.report_recv_s is None else max(0.0, now_s - st.report_recv_s)
-        stale = age_s is not None and age_s > self.params.max_leader_age_s
-        est = None
-        if st.report is not None and st.estimator.localized:
-            est = st.estimator.estimate(st.report_t_s if stale else now_s)
-        located = est is not None
-        return TrainView(
-            st.train_id, located, age_s, stale, est.s_m if located else None, est.v_mps if located else None,
-            est.sigma_s_m if located else None, est.ahead_m if located else None, est.behind_m if located else None,
-            st.limit_s, st.limited_by, None if st.leader_data_t_s is None else now_s - st.leader_data_t_s,
-            None if st.report is None else st.report["mode"], () if st.report is None else tuple(st.report["flt"]),
-            st.next_stop or None, st.reports_rejected, st.estimator.rejected_ips, st.estimator.speed_steps,
-            None if st.rng_gap is None else st.rng_gap[1], st.gap_alarm, st.dwells, st.stop_overruns, st.cmd_seq,
-            st.last_reject, st.odometer_jumps, st.encoder_failures, st.failures, st.measurements_dropped,
-            None if st.answered_s is None else now_s - st.answered_s, st.estimator.healthy(), st.safe_m,
-            st.gap_alarms)
 
     def authority_m(self, train_id: str):
         """How far `train_id`'s safety limit allowed at its newest command (m; None: held): what a simulation's

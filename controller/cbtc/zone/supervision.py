@@ -68,6 +68,26 @@ class TrainView:
                 "handling_failures": self.handling_failures, "measurements_dropped": self.measurements_dropped}
 
 
+def train_view(st, now_s: float, max_age_s: float) -> TrainView:
+    """The TrainView of zone state `st` (a TrainState) at `now_s`; stale when not heard from for `max_age_s`."""
+    age_s = None if st.report_recv_s is None else max(0.0, now_s - st.report_recv_s)
+    stale = age_s is not None and age_s > max_age_s
+    est = None
+    if st.report is not None and st.estimator.localized:
+        est = st.estimator.estimate(st.report_t_s if stale else now_s)
+    located = est is not None
+    return TrainView(
+        st.train_id, located, age_s, stale, est.s_m if located else None, est.v_mps if located else None,
+        est.sigma_s_m if located else None, est.ahead_m if located else None, est.behind_m if located else None,
+        st.limit_s, st.limited_by, None if st.leader_data_t_s is None else now_s - st.leader_data_t_s,
+        None if st.report is None else st.report["mode"], () if st.report is None else tuple(st.report["flt"]),
+        st.next_stop or None, st.reports_rejected, st.estimator.rejected_ips, st.estimator.speed_steps,
+        None if st.rng_gap is None else st.rng_gap[1], st.gap_alarm, st.dwells, st.stop_overruns, st.cmd_seq,
+        st.last_reject, st.odometer_jumps, st.encoder_failures, st.failures, st.measurements_dropped,
+        None if st.answered_s is None else now_s - st.answered_s, st.estimator.healthy(), st.safe_m,
+        st.gap_alarms)
+
+
 @dataclass(frozen=True, slots=True)
 class ZoneView:
     """The zone at `t_s`: each train's view, in the zone's order, and the zone's own counts."""
