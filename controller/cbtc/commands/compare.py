@@ -79,7 +79,6 @@ def _number_list(text, option, kind, low, high, what, example):
 
 def run(args):
     # every setting is checked before the first (long) run
-    from cbtc.authority.speed_code_channel import SpeedCodeChannel
     from cbtc.experiments.headway import (
         PAPER,
         block_sweep,
@@ -91,11 +90,7 @@ def run(args):
     )
     from cbtc.layout_files import load_layout
 
-    report_periods = _number_list(args.report_ms, "--report-ms", int, 1, 10000, "a whole number >= 1", "100,20")
-    speeds = _number_list(args.follow_mps, "--follow-mps", float, 0.05, 0.55, "a speed in [0.05, 0.55] m/s",
-                          "0.3,0.5")
-    counts = _number_list(args.blocks, "--blocks", int, 2, 10000, "a whole number >= 2", "3,4,8")
-    SpeedCodeChannel(args.code_ber)
+    report_periods, speeds, counts = _checked_lists(args)
     base = with_scenario(args, {"layout": "itb_square", "seed": 0}, fixed=("layout",), overrides={"seed": "seed"})
     if base is None:
         laps = args.laps or 5
@@ -182,6 +177,19 @@ def _print_comparison(args, title, base, result):
         print(format_table(sweep, [("blocks", "blocks"), ("block_length_m", "block m")] + COLUMNS[1:]))
     if args.plot:
         print(f"distance-time plot: {args.plot}")
+
+
+def _checked_lists(args):
+    """(report periods, follower speeds, block counts) of --report-ms, --follow-mps and --blocks, and --code-ber,
+    checked: ConfigError naming the flag and its fix."""
+    from cbtc.authority.speed_code_channel import SpeedCodeChannel
+
+    report_periods = _number_list(args.report_ms, "--report-ms", int, 1, 10000, "a whole number >= 1", "100,20")
+    speeds = _number_list(args.follow_mps, "--follow-mps", float, 0.05, 0.55, "a speed in [0.05, 0.55] m/s",
+                          "0.3,0.5")
+    counts = _number_list(args.blocks, "--blocks", int, 2, 10000, "a whole number >= 2", "3,4,8")
+    SpeedCodeChannel(args.code_ber)
+    return report_periods, speeds, counts
 
 
 def _least_headway(base):

@@ -249,6 +249,27 @@ def run_fuzz(payloads: int, seed: int, broker_url: str = None, progress=None, cl
             broker.kill()
 
 
+def _connect(config, keys, seed, url, client, loop, traffic, buses):
+    """(the zone's bus, the virtual trains on theirs, the stranger that throws), each bus kept in `buses`; a
+    listener records the traffic the replays are drawn from."""
+    zc_bus = start_bus(client, url, "zc-fuzz", loop.net, status_topic=wire_zc.topic_zone_status("fuzz"))
+    buses.append(zc_bus)
+    trains = []
+    for index, spec in enumerate(config.trains):
+        bus = start_bus(client, url, "train-" + spec.train_id, loop.net, status_topic=wire.topic_status(spec.train_id))
+        buses.append(bus)
+        train_rng = np.random.default_rng([seed, index])
+        trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], config.layout, spec.profile, spec.s0_m, bus,
+                                   train_rng, int(train_rng.integers(0, 10_000_000))))
+    listener = start_bus(client, url, "fuzz-listener", loop.net)
+    buses.append(listener)
+    listener.subscribe("cbtc/train/+/report", traffic.record)
+    listener.subscribe("cbtc/train/+/cmd", traffic.record)
+    stranger = PahoBus(url, "stranger").start()   # paho's own thread: it throws while the loop runs
+    buses.append(stranger)
+    return zc_bus, trains, stranger
+
+
 def _campaign(payloads, seed, url, progress, buses, client):
     layout = load_layout("itb_square")
     config = paper_scenario(layout, seed=seed, laps=1000)
@@ -257,21 +278,7 @@ def _campaign(payloads, seed, url, progress, buses, client):
     rng = random.Random(seed)
     traffic = Traffic()
     traffic.now_s = loop.now_s
-    zc_bus = start_bus(client, url, "zc-fuzz", loop.net, status_topic=wire_zc.topic_zone_status("fuzz"))
-    buses.append(zc_bus)
-    trains = []
-    for index, spec in enumerate(config.trains):
-        bus = start_bus(client, url, "train-" + spec.train_id, loop.net, status_topic=wire.topic_status(spec.train_id))
-        buses.append(bus)
-        train_rng = np.random.default_rng([seed, index])
-        trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus,
-                                   train_rng, int(train_rng.integers(0, 10_000_000))))
-    listener = start_bus(client, url, "fuzz-listener", loop.net)
-    buses.append(listener)
-    listener.subscribe("cbtc/train/+/report", traffic.record)
-    listener.subscribe("cbtc/train/+/cmd", traffic.record)
-    stranger = PahoBus(url, "stranger").start()   # paho's own thread: it throws while the loop runs
-    buses.append(stranger)
+    zc_bus, trains, stranger = _connect(config, keys, seed, url, client, loop, traffic, buses)
     zc = build_zone(config, keys, zc_bus, loop.now_s, zone_id="fuzz", seed=seed)
     zc.clear_track(None, by="the fuzz run, from its truth,")   # its trains alone stand on the track
     watch = Watch(zc, trains)
