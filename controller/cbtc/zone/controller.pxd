@@ -18,6 +18,9 @@ cdef class ZoneController:
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)
+    cpdef _decoded(self, TrainState state, payload, recv_s)
+    @cython.locals(report=dict, previous=dict)
+    cpdef _feed_estimator(self, TrainState state, report, previous, payload, recv_s)
     cpdef _watch_answers(self, TrainState state, recv_s)
     cpdef _position_m(self, TrainState state)
     cpdef _update(self, TrainState state, leader, all_located, now_s)

@@ -300,20 +300,8 @@ class ZoneController:
         self.refusals.note(state.train_id, klass, reason, recv_s, advice)
 
     def _take_report(self, state, payload, recv_s):
-        try:
-            report = fast_wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
-        except wire.AuthError:
-            self.invalid_reports += 1
-            self._refuse(state, "wrong key", "its reports fail authentication", recv_s,
-                         advice=f"the zone's key is from {self.key_source}: flash the board with it (cbtc flash "
-                                f"--keys FILE) or give the zone the board's")
-            return
-        except wire.WireError as exc:
-            self.invalid_reports += 1
-            # a board of another protocol version (authenticated: the key matched) needs this version's firmware
-            advice = f"flash the board with this version's firmware (cbtc flash), which speaks version {wire.VERSION}" \
-                if " names version " in exc.reason else ""
-            self._refuse(state, "invalid report", exc.reason, recv_s, advice=advice)
+        report = self._decoded(state, payload, recv_s)
+        if report is None:
             return
         other_boot = state.boots.boot is not None and report["boot"] != state.boots.boot
         if other_boot and state.boots.second_board(report, recv_s):
@@ -347,6 +335,50 @@ class ZoneController:
             self.refusals.note(state.train_id, "measurement", f"{dropped} IPS fix, tag or range stamped outside "
                                f"its report (t_ms {report['t_ms']})", recv_s)
         self._note_motion_faults(state, report, previous, recv_s)
+        report = self._feed_estimator(state, report, previous, payload, recv_s)
+        state.odo_moved = previous is None or report["odo_mm"] != previous["odo_mm"]
+        state.report = report
+        if state.report_recv_s is None:
+            self._unheard -= 1
+        if state.report_recv_s != recv_s:   # one entry a train in the heap for each receive time
+            heappush(self._heard, (recv_s, state.rank, state))
+        state.report_recv_s = recv_s
+        state.report_t_s = state.clock.to_controller_s(report["t_ms"])
+        if state.odo_moved:
+            state.still_since_s = state.report_t_s
+        state.took_report()
+        self._moved.add(state)
+        if not self.swept.complete and state.estimator.localized:
+            self._sweep(state)
+        if self.reports:
+            self.reports.publish(state.train_id, report, recv_s)
+        if report.get("rng") is not None:
+            state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
+        if self.event_driven and state.estimator.localized:
+            self._answer(state, recv_s)
+
+    def _decoded(self, state, payload, recv_s):
+        """The report of `payload`, authenticated and checked; None, counted and said, when it is not one."""
+        try:
+            report = fast_wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
+        except wire.AuthError:
+            self.invalid_reports += 1
+            self._refuse(state, "wrong key", "its reports fail authentication", recv_s,
+                         advice=f"the zone's key is from {self.key_source}: flash the board with it (cbtc flash "
+                                f"--keys FILE) or give the zone the board's")
+            return None
+        except wire.WireError as exc:
+            self.invalid_reports += 1
+            # a board of another protocol version (authenticated: the key matched) needs this version's firmware
+            advice = f"flash the board with this version's firmware (cbtc flash), which speaks version {wire.VERSION}" \
+                if " names version " in exc.reason else ""
+            self._refuse(state, "invalid report", exc.reason, recv_s, advice=advice)
+            return None
+        return report
+
+    def _feed_estimator(self, state, report, previous, payload, recv_s):
+        """Hand an accepted report to the train's estimator, unless its encoder failed or its odometer jumped (then
+        the train is located afresh); the report as taken (its tags dropped when the odometer's frame changed)."""
         faults = ENCODER_FAULTS.intersection(report["flt"])
         jump_mm = 0 if previous is None else plausibility.odometer_jump_mm(report, previous,
                                                                            state.setup.profile.v_noload_mps)
@@ -379,26 +411,7 @@ class ZoneController:
             if not self._filter_healthy(state):
                 self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
                                    "updating its filter", payload, recv_s)
-        state.odo_moved = previous is None or report["odo_mm"] != previous["odo_mm"]
-        state.report = report
-        if state.report_recv_s is None:
-            self._unheard -= 1
-        if state.report_recv_s != recv_s:   # one entry a train in the heap for each receive time
-            heappush(self._heard, (recv_s, state.rank, state))
-        state.report_recv_s = recv_s
-        state.report_t_s = state.clock.to_controller_s(report["t_ms"])
-        if state.odo_moved:
-            state.still_since_s = state.report_t_s
-        state.took_report()
-        self._moved.add(state)
-        if not self.swept.complete and state.estimator.localized:
-            self._sweep(state)
-        if self.reports:
-            self.reports.publish(state.train_id, report, recv_s)
-        if report.get("rng") is not None:
-            state.rng_gap = (state.clock.to_controller_s(report["rng"][0]), report["rng"][1] / 1000.0)
-        if self.event_driven and state.estimator.localized:
-            self._answer(state, recv_s)
+        return report
 
     def _sweep(self, state):
         """Vouch for the track `state`'s train has certainly covered since its previous located report: from the
