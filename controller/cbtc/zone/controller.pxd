@@ -29,6 +29,8 @@ cdef class ZoneController:
     cpdef _answer(self, TrainState state, now_s)
     cpdef _station_stop(self, TrainState state, now_s)
     cpdef _command(self, TrainState state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
+    @cython.locals(report=dict)
+    cpdef _end_of_authority_mm(self, TrainState state, safe_m, scale_low, dec_mps2, now_s)
     cpdef _fast_reports(self, TrainState state, now_s)
     cpdef _want_fast(self, TrainState state, need_m, now_s)
     cpdef _unrank_fast(self, TrainState state)

@@ -821,28 +821,7 @@ class ZoneController:
             safe_m, stop_m, v_cap_mps, dec_mps2 = None, None, 0.0, state.setup.profile.beta_s_mps2
             scale_low = _SCALE_LOW
             state.limited_by = "held: encoder scale unknown"
-        state.safe_m = safe_m
-        if safe_m is None:
-            # no picture of every train: stop now at service rate; the authority never extends. Its end is the
-            # braking distance from the highest speed the train can have reached since its report (the report's
-            # speed lags half a speed window; the train may have accelerated since): a standing train is held where
-            # it stands, not granted room it may not have. The stop is the speed cap 0
-            profile = state.setup.profile
-            lag_s = max(0.0, now_s - state.report_t_s) + obu.DEFAULTS["speed_window_ms"] / 1000.0 + profile.reaction_s
-            v_mps = min(profile.v_noload_mps, report["v_mmps"] / 1000.0 + profile.accel_max_mps2 * lag_s)
-            brake_m = v_mps * profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
-            eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
-        else:
-            # metres along the track into odometer mm at the lowest scale the wheel reads, and no further than a wheel
-            # that began to slide by slide_share now would carry the train into the margin beyond (at a long
-            # authority the slide's share is more than the margin)
-            reach_m = min(safe_m * scale_low, (1.0 - self.params.slide_share) * (safe_m + self.params.margin_m))
-            eoa_mm = report["odo_mm"] + int(reach_m * 1000.0)
-        if state.eoa_mm is not None and (safe_m is None or self._leader_stale(state, now_s)):
-            if safe_m is not None and eoa_mm > state.eoa_mm:
-                state.limited_by = "not extended: stale data"
-            eoa_mm = min(eoa_mm, state.eoa_mm)
-        state.eoa_mm = eoa_mm
+        eoa_mm = self._end_of_authority_mm(state, safe_m, scale_low, dec_mps2, now_s)
         # a stop target is service, not safety: the best estimate of the scale, and never beyond the end of authority
         stop_mm = eoa_mm if stop_m is None else \
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
@@ -878,6 +857,34 @@ class ZoneController:
         if self.commands:
             self.commands.publish(CommandSent(state.train_id, now_s, command, state.limited_by, state.leader_data_t_s,
                                               state.sigma_m, state.estimator.confirmed))
+
+    def _end_of_authority_mm(self, state, safe_m, scale_low, dec_mps2, now_s):
+        """The end of authority, in the train's odometer mm, for `safe_m` metres of track ahead (None: stop) at the
+        encoder's low scale `scale_low`; kept as the one the train holds (never extended from stale data)."""
+        report = state.report
+        state.safe_m = safe_m
+        if safe_m is None:
+            # no picture of every train: stop now at service rate; the authority never extends. Its end is the
+            # braking distance from the highest speed the train can have reached since its report (the report's
+            # speed lags half a speed window; the train may have accelerated since): a standing train is held where
+            # it stands, not granted room it may not have. The stop is the speed cap 0
+            profile = state.setup.profile
+            lag_s = max(0.0, now_s - state.report_t_s) + obu.DEFAULTS["speed_window_ms"] / 1000.0 + profile.reaction_s
+            v_mps = min(profile.v_noload_mps, report["v_mmps"] / 1000.0 + profile.accel_max_mps2 * lag_s)
+            brake_m = v_mps * profile.reaction_s + braking_distance_m(v_mps, dec_mps2)
+            eoa_mm = report["odo_mm"] + int(brake_m * 1000.0)
+        else:
+            # metres along the track into odometer mm at the lowest scale the wheel reads, and no further than a wheel
+            # that began to slide by slide_share now would carry the train into the margin beyond (at a long
+            # authority the slide's share is more than the margin)
+            reach_m = min(safe_m * scale_low, (1.0 - self.params.slide_share) * (safe_m + self.params.margin_m))
+            eoa_mm = report["odo_mm"] + int(reach_m * 1000.0)
+        if state.eoa_mm is not None and (safe_m is None or self._leader_stale(state, now_s)):
+            if safe_m is not None and eoa_mm > state.eoa_mm:
+                state.limited_by = "not extended: stale data"
+            eoa_mm = min(eoa_mm, state.eoa_mm)
+        state.eoa_mm = eoa_mm
+        return eoa_mm
 
     def _fast_reports(self, state, now_s):
         """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
