@@ -103,8 +103,7 @@ def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS
     def encode_command(key, train_id, *values, **named):
         """Sealed command payload of the fields of the command table, in its order or by name (the table says each
         field's meaning, bounds and unit); those of `defaults` may be left out (stop_mm, rpt_ms, odo_mm_per_m)."""
-        ints = values if len(values) == len(keys) and not named and None not in values \
-            else fields_of(keys, defaults, values, named)
+        ints = fields_of(keys, defaults, values, named)
         body = plain_body(train_id, ints)
         if body is None:   # whatever a caller passes (a test's bool, float or odd id) is written as JSON writes it
             msg = {"v": VERSION, "k": "cmd", "id": train_id}
@@ -115,8 +114,8 @@ def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS
 
     def plain_body(train_id, ints):
         """A command's JSON text for `ints` (its fields in the table's order) when every one is an int and the id
-        plain: the bytes json.dumps writes for them (an int's repr; an id of letters, digits, '_' and '-'), made at
-        for less than json.dumps costs, as a zone sends a command for most reports. None otherwise."""
+        plain: the bytes json.dumps writes for them (an int's repr; an id of letters, digits, '_' and '-'), made for
+        less than json.dumps costs, as a zone sends a command for most reports. None otherwise."""
         if _plain_id(train_id) and set(map(type, ints)) == _INT_ONLY:
             return template % ((VERSION, train_id) + ints)
         return None
@@ -126,7 +125,10 @@ def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS
 
 def fields_of(keys, defaults, values, named):
     """The tuple of a message's fields in the order of `keys`: `values` by position, then `named` by name, then
-    `defaults` (a string there names the field whose value it takes); WireError naming a field missing or unknown."""
+    `defaults` (a string there names the field whose value it takes; None given is as if left out); WireError naming
+    a field missing or unknown. Every field given in order, none None: `values` itself, as the zone gives them."""
+    if len(values) == len(keys) and not named and None not in values:
+        return values
     if len(values) > len(keys):
         raise WireError("%d fields given; the message has %d: %s" % (len(values), len(keys), ", ".join(keys)))
     given = dict(zip(keys, values))

@@ -104,7 +104,8 @@ def test_faulty_leader_guard_prevents_the_collision_that_happens_without_it():
 def test_the_controller_takes_the_shorter_of_estimated_and_measured_gap_and_raises_the_alarm():
     from cbtc.authority.moving_block import MovingBlockPolicy
     from cbtc.layout_files import load_layout
-    from cbtc.zone.controller import TrainSetup, ZoneController
+    from cbtc.zone.controller import ZoneController
+    from cbtc.zone.train_state import TrainSetup
 
     class Quiet:
         def publish(self, *a, **k):

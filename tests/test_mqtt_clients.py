@@ -262,14 +262,16 @@ def test_status_goes_at_qos_1_and_reaches_a_qos_1_subscriber_as_qos_1(mosquitto,
     raw.subscribe("cbtc/train/+/status", qos=1)
     raw.loop_start()
     clients = Clients(kind)
+    bus = None
     try:
         time.sleep(0.2)
         bus = clients.start(mosquitto.url, "train-A", status_topic="cbtc/train/A/status")
         clients.wait_for(lambda: got, 3.0, "the status")
         assert got[0] == ("cbtc/train/A/status", b"online", 1, False)
         assert topic_qos("cbtc/train/A/status") == 1 and topic_qos("cbtc/train/A/report") == 0
-        bus.disconnect()
     finally:
+        if bus is not None:
+            bus.disconnect()
         raw.loop_stop()
         raw.disconnect()
 

@@ -20,7 +20,8 @@ from cbtc.firmware import obu
 from cbtc.firmware.manifest import FIRMWARE_DIR
 from cbtc.layout_files import load_layout
 from cbtc.zone.boots import LEFT_BOOTS
-from cbtc.zone.controller import TrainSetup, ZoneController
+from cbtc.zone.controller import ZoneController
+from cbtc.zone.train_state import TrainSetup
 from fake_drivers import FakeEncoder, FakeIps, FakeMotor, FakeRfid
 from mpy_harness import MPY_TESTS_DIR, SHIMS_DIR, requires_micropython, run_micropython
 

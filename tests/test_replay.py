@@ -14,7 +14,8 @@ from cbtc.layout_files import load_layout
 from cbtc.protocol import wire
 from cbtc.sim.simulation import Simulation
 from cbtc.zone.config import paper_scenario
-from cbtc.zone.controller import TrainSetup, ZoneController
+from cbtc.zone.controller import ZoneController
+from cbtc.zone.train_state import TrainSetup
 from test_obu import CMD, Bench
 
 KEY = b"0123456789abcdef"

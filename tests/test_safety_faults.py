@@ -427,7 +427,8 @@ def test_the_authority_on_board_ends_within_the_margin_for_a_wheel_that_begins_t
     no more than a wheel reading 0.7 of the travel from now on would take to the margin (0.1 m) beyond it: short
     authorities, as in following, are untouched; long ones lose what such a slide would add."""
     from cbtc.authority.moving_block import MovingBlockPolicy
-    from cbtc.zone.controller import TrainSetup, ZoneController
+    from cbtc.zone.controller import ZoneController
+    from cbtc.zone.train_state import TrainSetup
 
     class Quiet:
         def publish(self, *a, **k):

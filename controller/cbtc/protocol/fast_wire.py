@@ -109,8 +109,6 @@ def loads(data):
     return json.loads(data)
 
 
-
-
 def decode_command(key, topic, payload):
     """wire.decode_command: the command dict of a sealed payload, validated; WireError with the reason otherwise."""
     return _decode_command(key, topic, payload, _COMMAND_INTS, seal, loads)
@@ -213,8 +211,7 @@ def command_encoder(message=messages.COMMAND, defaults=messages.COMMAND_DEFAULTS
     def encode_command(key, train_id, *values, **named):
         if _WRITTEN is None:
             return board_encode(key, train_id, *values, **named)
-        ints = values if len(values) == len(keys) and not named and None not in values \
-            else fields_of(keys, defaults, values, named)
+        ints = fields_of(keys, defaults, values, named)
         text = plain_body(train_id, ints)
         if text is None:
             return board_encode(key, train_id, *ints)

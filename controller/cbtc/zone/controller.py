@@ -47,7 +47,7 @@ from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
 from cbtc.zone.supervision import CommandSent, Subscribers, ZoneView, train_view
 from cbtc.zone.swept import SweptTrack
 from cbtc.zone.tails import TailWatch
-from cbtc.zone.train_state import TrainSetup, TrainState  # noqa: F401  (TrainSetup: the zone's callers import it here)
+from cbtc.zone.train_state import TrainState
 
 log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning

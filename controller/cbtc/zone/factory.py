@@ -6,7 +6,8 @@ from cbtc.authority.moving_block import MovingBlockPolicy
 from cbtc.authority.policy import AuthorityPolicy, policy_names
 from cbtc.errors import ConfigError
 from cbtc.zone.config import ScenarioConfig
-from cbtc.zone.controller import TrainSetup, ZoneController
+from cbtc.zone.controller import ZoneController
+from cbtc.zone.train_state import TrainSetup
 
 # the one place a policy is picked by its name (a scenario's `policy`, `--policy`)
 POLICIES = {cls.name: cls for cls in (MovingBlockPolicy, FixedBlockPolicy)}
