@@ -197,7 +197,7 @@ def test_a_dwell_ends_within_a_fast_report_of_its_time():
                                     trains=[TrainSpec("A", 0.0, tuple(st.name for st in layout.stations),
                                                       TrainProfile())]))
     zc, late_s = sim.zc, []
-    station_stop = zc._station_stop
+    station_stop = zc.stops.stop_m
 
     def timed(state, now_s):
         due_s = state.dwell_until_s
@@ -205,7 +205,7 @@ def test_a_dwell_ends_within_a_fast_report_of_its_time():
         if due_s is not None and state.dwell_until_s is None:
             late_s.append(now_s - due_s)
         return stop_m
-    zc._station_stop = timed
+    zc.stops.stop_m = timed
     sim.run()
     assert len(late_s) >= 6 and 0.0 <= min(late_s) and max(late_s) <= 0.025, late_s
 
@@ -219,11 +219,11 @@ def test_fast_reports_stay_within_the_controllers_report_budget_most_urgent_firs
 
     config = queue_scenario(load_layout("lego_oval"), 4, seed=1, duration_s=28.0, report_budget_hz=110.0)
     sim = Simulation(config)
-    assert sim.zc.fast_slots == 1
+    assert sim.zc.fast.slots == 1
     fast_at = []
 
     def count_fast(now_s):
-        fast_at.append([st.train_id for st in sim.zc.trains.values() if sim.zc._fast_reports(st, now_s)])
+        fast_at.append([st.train_id for st in sim.zc.trains.values() if sim.zc.fast.granted(st, now_s)])
     sim.scheduler.call_every(0.5, count_fast, start_s=10.0)
     sim.run()
     assert all(len(ids) <= 1 for ids in fast_at)
@@ -231,7 +231,7 @@ def test_fast_reports_stay_within_the_controllers_report_budget_most_urgent_firs
     wanting = [st for st in sim.zc.trains.values() if sim.zc.now_fn() < st.fast_until_s]
     if len(wanting) > 1:
         urgent = min(wanting, key=lambda st: (st.fast_need_m, st.train_id))
-        assert sim.zc._fast_reports(urgent, sim.zc.now_fn())
+        assert sim.zc.fast.granted(urgent, sim.zc.now_fn())
 
 
 @pytest.mark.parametrize("scale_error", [-0.03, 0.02])

@@ -9,12 +9,11 @@ cdef class ZoneController:
     cdef dict __dict__
     cdef object __weakref__
     cdef public object _moved, _order, _placed, _located, _departing, _departing_for
-    cdef public object _fast_wanting, _fast_lapse_s, _fast_ranked, _unanswered, _heard, _unheard
+    cdef public object fast, _unanswered, _heard, _unheard
     cdef public object layout, client, now_fn, policy, params, cycle_s
     cdef public object event_driven, zone_id, _rng, session_id, _estimator_factory, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
-    cdef public object use_measured_gap, commands, reports, views, fast_slots, obstacles, _balises
-    cdef public object _stranger_length_m, _stranger_v_mps, _parted, swept
+    cdef public object use_measured_gap, commands, reports, views, obstacles, watch, swept, stops
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)
@@ -27,11 +26,7 @@ cdef class ZoneController:
     cpdef _authorise(self, TrainState state, leader, all_located, now_s)
     cpdef _took(self, TrainState state, auth)
     cpdef _answer(self, TrainState state, now_s)
-    cpdef _station_stop(self, TrainState state, now_s)
     cpdef _command(self, TrainState state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
     @cython.locals(report=dict)
     cpdef _end_of_authority_mm(self, TrainState state, safe_m, scale_low, dec_mps2, now_s)
-    cpdef _fast_reports(self, TrainState state, now_s)
-    cpdef _want_fast(self, TrainState state, need_m, now_s)
-    cpdef _unrank_fast(self, TrainState state)
     cpdef _leader_stale(self, TrainState state, now_s)

@@ -18,7 +18,7 @@ and dropped.
 import hashlib
 import logging
 import random
-from bisect import bisect_left, bisect_right, insort
+from bisect import bisect_left, bisect_right
 from heapq import heappop, heappush
 from math import isfinite
 
@@ -34,16 +34,16 @@ from cbtc.authority.values import Situation
 from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import span_offsets_m
 from cbtc.firmware import obu
-from cbtc.protocol import fast_wire, unsealed, wire, wire_zc
+from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.protocol.records import Command
-from cbtc.railway.balise import BaliseReader
 from cbtc.railway.ips_frame import ips_to_track
 from cbtc.railway.physics import braking_distance_m
 from cbtc.zone import plausibility
-from cbtc.zone.boots import TWIN_ALIVE_S
+from cbtc.zone.fast_reports import FastReports, fast_report_slots
 from cbtc.zone.handover import TrainRecord, declare_handed, export_train, import_train
-from cbtc.zone.obstacles import Obstacle, room_m
+from cbtc.zone.obstacle_watch import ObstacleWatch
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
+from cbtc.zone.stations import STANDING_MMPS, StationStops
 from cbtc.zone.supervision import CommandSent, Subscribers, ZoneView, train_view
 from cbtc.zone.swept import SweptTrack
 from cbtc.zone.tails import TailWatch
@@ -53,25 +53,10 @@ log = logging.getLogger("cbtc.zone")
 DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
 _SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true metre a wheel can have: the band
 _SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
-_NO_MORE_STOPS = ""   # next_stop of a train past the last of its stops on a line
-_DWELL_FAST_S = 2 * obu.DEFAULTS["report_ms"] / 1000.0   # before a dwell ends, fast reports for this long (s)
 _STOP_KEPT_MM = obu.STOP_MADE_MM   # near standstill, a station's stop target moves only when the estimate shifts
 #                                   it further than the board holds short of it
-_STANDING_MMPS = 30   # slower than this, braked or not counting: standing, for the dwell (the board's creep speed)
 ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
-_SEEN_IPS_M = 0.45   # an obstacle's IPS fix puts its head within this either way: the IPS's lasting bias (0.3 m,
-#                      UkfParams.ips_bias_m) and 3 sigma of its noise
-_SEEN_TAG_M = 0.05   # ... a balise read of it: the reader's range and a tag's placement
 
-
-def fast_report_slots(report_budget_hz: float, n_trains: int, params: AuthorityParams) -> int:
-    """How many trains may report fast at once within `report_budget_hz`, the reports a second the controller is
-    sized for (`cbtc bench latency` measures what it takes): every train reports at the board's own rate, and what is
-    left pays for fast reports, each fast train costing the difference."""
-    base_hz = 1000.0 / obu.DEFAULTS["report_ms"]
-    extra_hz = 1000.0 / params.fast_report_ms - base_hz
-    spare_hz = report_budget_hz - base_hz * n_trains
-    return max(0, int(spare_hz // extra_hz)) if extra_hz > 0 else n_trains
 
 
 class ZoneController:
@@ -88,9 +73,6 @@ class ZoneController:
         self._departing = {}      # train id -> state, trains whose newest authority is a departure
         self._departing_for = {}  # state -> the profiles of the departing trains but it (Situation.departing), kept
         #                           until a train's departure begins or ends
-        self._fast_wanting = {}   # train id -> state, trains asked for fast reports (some may have lapsed)
-        self._fast_lapse_s = 0.0  # none of them lapses before then (so they need no sweep for lapsed ones)
-        self._fast_ranked = []    # (authority left to the follower m, train id) of each of them, sorted
         self._unanswered = set()  # states whose newest report does not echo this controller's session
         self._heard = []          # heap of (receive time, rank, state) of reports taken; entries a newer report of
         #                           its train replaced are dropped when they come to the top
@@ -105,6 +87,7 @@ class ZoneController:
         self.zone_id = zone_id
         self._rng = random.Random(seed)
         self.session_id = self._rng.randrange(1, 2 ** 31 - 1)
+        self.stops = StationStops(layout, self._rng)
         if estimator_factory is None:
             from cbtc.estimation.ukf_estimator import UkfEstimator as estimator_factory
         self._estimator_factory = estimator_factory
@@ -118,14 +101,11 @@ class ZoneController:
                         "the layout (docs/layouts.md)", layout.name)
         self.unknown_reports = 0
         self.invalid_reports = 0
-        self.obstacles = {}           # name -> Obstacle: on the track, and no train of the zone (cbtc.zone.obstacles)
-        self._parted = set()          # trains whose train line opened: their car's place is an obstacle
         self.swept = SweptTrack(layout)   # the track vouched for; the rest is occupied (cbtc.zone.swept)
-        self._balises = BaliseReader(layout)   # where an obstacle's tag reads put it
-        profiles = [st.setup.profile for st in self.trains.values()]
-        self._stranger_length_m = max(p.length_m for p in profiles)   # an unknown train is as long as the longest,
-        self._stranger_v_mps = 1.5 * max(p.v_noload_mps for p in profiles)   # and no faster than half again theirs
         self.refusals = RefusalLog(log)
+        self.watch = ObstacleWatch(layout, [st.setup.profile for st in self.trains.values()], self.params,
+                                   self.refusals)   # what stands on the track and is no train of the zone
+        self.obstacles = self.watch.obstacles   # name -> Obstacle (the watch's), read at every authority
         self.key_source = "its keys"   # where the zone's keys come from, named when a board's differ (a file)
         self.cycles = 0
         self.ranging_sigma_m = 0.02   # 1-sigma of a measured gap (cbtc.ranging.transponder.RangingSensor.sigma_m)
@@ -133,7 +113,8 @@ class ZoneController:
         self.commands = Subscribers("commands")   # each gets a CommandSent after each command is published
         self.reports = Subscribers("reports")     # each gets (train_id, report, recv_s) for each accepted report
         self.views = Subscribers("views")         # each gets the ZoneView of each publish_view()
-        self.fast_slots = fast_report_slots(report_budget_hz, len(self.trains), self.params)
+        self.fast = FastReports(fast_report_slots(report_budget_hz, len(self.trains), self.params),
+                                self.params.fast_hold_s)
 
     def _add_trains(self, setups):
         """A TrainState for each TrainSetup, its fixed distances worked out once; ValueError or LayoutError naming a
@@ -201,98 +182,12 @@ class ZoneController:
         state = self.trains.get(train_id)
         if state is None:
             self.unknown_reports += 1
-            self._stranger(train_id, topic, payload, recv_s)
+            self.watch.stranger(train_id, topic, payload, recv_s)
             return
         try:
             self._take_report(state, payload, recv_s)
         except Exception as exc:   # one train's bad data never stops the zone
             self._train_failed(state, exc, "handling a report", payload, recv_s)
-
-    def _stranger(self, train_id, topic, payload, recv_s):
-        """A report under an id this zone does not know: a board on the track it cannot command. Its reports cannot
-        be authenticated, but an obstacle only takes authority away: it is kept where they put it (Obstacle), every
-        train behind it held short of it, and all of them while they put it nowhere."""
-        try:
-            report = unsealed.peek_report(topic, payload)
-        except wire.WireError as exc:
-            self.refusals.note(UNKNOWN, "report", f"train {train_id!r} is not in this zone ({exc.reason})", recv_s)
-            return
-        name = f"unknown board {train_id}"
-        obstacle = self.obstacles.get(name)
-        if obstacle is None:
-            obstacle = self.obstacles[name] = Obstacle(name, self._stranger_length_m, self._stranger_v_mps)
-            log.error("a board reports as train %s, which is not in this zone: it is an obstacle where its reports put "
-                      "it (every train behind it is held short of it, and every train while they place it nowhere); "
-                      "configure it (a train of the zone) or take it off the track and restart the zone", train_id)
-        self._sight(obstacle, report, recv_s)
-
-    def _sight(self, obstacle, report, recv_s):
-        """Where `report` puts `obstacle`'s head: its IPS fix, its balise reads."""
-        obstacle.hear(recv_s)
-        fix = report["ips"]
-        if fix is not None:
-            x_m, y_m = ips_to_track(fix[1] / 1000.0, fix[2] / 1000.0, self.layout.ips)
-            s_m = float(self.layout.project(x_m, y_m))
-            obstacle.see(recv_s, s_m - _SEEN_IPS_M, s_m + _SEEN_IPS_M)
-        for entry in report["tags"]:
-            s_m = self._balises.position_m(entry[0], entry[4] if len(entry) > 4 else None)
-            if s_m is not None:
-                obstacle.see(recv_s, s_m - _SEEN_TAG_M, s_m + _SEEN_TAG_M)
-
-    def _other_boot(self, state, report, recv_s, proven):
-        """An authenticated report of a boot under `state`'s id that is not the train's current one and moves nothing
-        forward: a second board, or a replay. Either way something may stand where it says: an obstacle, which lapses
-        when that boot falls silent for BootTracker's TWIN_ALIVE_S, until it is `proven` a second board
-        (BootTracker.second_board): then the train is held and the obstacle stays."""
-        name = self._other_boot_name(state, report["boot"])
-        obstacle = self.obstacles.get(name)
-        if obstacle is None:
-            profile = state.setup.profile
-            obstacle = self.obstacles[name] = Obstacle(name, profile.length_m, 1.5 * profile.v_noload_mps,
-                                                       lapse_s=TWIN_ALIVE_S)
-        self._sight(obstacle, report, recv_s)
-        if proven and obstacle.lapse_s is not None:
-            obstacle.lapse_s = None
-            log.error("two boards report as train %s (boots %d and %d): the train is held, and the board of boot %d "
-                      "is an obstacle where its reports put it; take one of them off the track (or flash it with its "
-                      "own id and key) and restart the zone", state.train_id, state.boots.boot, report["boot"],
-                      report["boot"])
-
-    @staticmethod
-    def _other_boot_name(state, boot):
-        return f"second board of {state.train_id} (boot {boot})"
-
-    def _obstacle_nowhere(self, state):
-        """The name of an obstacle not yet seen anywhere (it may be on any track: every train is held, as while a
-        train of the zone is not located), or None; lapsed obstacles are dropped."""
-        for obstacle in list(self.obstacles.values()):
-            if obstacle.lapsed(self.now_fn()):
-                del self.obstacles[obstacle.name]
-            elif not obstacle.seen and obstacle.owner != state.train_id:
-                return obstacle.name
-        return None
-
-    def _clear_of_obstacles(self, state, auth, now_s):
-        """`auth` cut short of every obstacle seen ahead of `state`'s train (its margin and k sigma of its own estimate
-        off)."""
-        if not self.obstacles:
-            return auth
-        est = state.newest_estimate()
-        layout = self.layout
-        front_s = layout.wrap(est.s_m + est.ahead_m + self.params.k_sigma * est.sigma_s_m)
-        for obstacle in list(self.obstacles.values()):
-            if obstacle.lapsed(now_s):
-                del self.obstacles[obstacle.name]
-                continue
-            if obstacle.owner == state.train_id:
-                continue
-            span = obstacle.span(layout, now_s)
-            if span is None:   # not seen yet: the caller holds every train
-                continue
-            distance_m = room_m(layout, front_s, span) - self.params.margin_m
-            if distance_m < auth.distance_m:
-                auth = auth.cut_to(distance_m, obstacle.name)
-        return auth
 
     def _refuse(self, state, klass, reason, recv_s, advice=""):
         state.reports_rejected += 1
@@ -305,7 +200,7 @@ class ZoneController:
             return
         other_boot = state.boots.boot is not None and report["boot"] != state.boots.boot
         if other_boot and state.boots.second_board(report, recv_s):
-            self._other_boot(state, report, recv_s, proven=True)
+            self.watch.other_boot(state, report, recv_s, proven=True)
             return
         previous = state.report if state.report is not None and state.report["boot"] == report["boot"] else None
         reason = state.boots.refusal(report, recv_s)
@@ -314,10 +209,10 @@ class ZoneController:
         if reason:
             self._refuse(state, "report", reason, recv_s)
             if other_boot:
-                self._other_boot(state, report, recv_s, proven=False)
+                self.watch.other_boot(state, report, recv_s, proven=False)
             return
-        if other_boot:   # the boot the train goes on with is the train itself, no obstacle
-            self.obstacles.pop(self._other_boot_name(state, report["boot"]), None)
+        if other_boot:
+            self.watch.boot_is_train(state, report["boot"])
         if state.boots.accept(report, recv_s, self.session_id):
             # a new boot: the board restarted; its clock, odometer and sequence began again
             log.warning("train %s restarted (boot %d): locating it afresh", state.train_id, report["boot"])
@@ -565,21 +460,21 @@ class ZoneController:
 
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
-        blind = self._obstacle_nowhere(state) if self.obstacles else None
+        blind = self.watch.nowhere(state, self.now_fn()) if self.obstacles else None
         braked = None if state.report is None else "reverse" if "reverse" in state.report["flt"] else \
             "split" if "split" in state.report["flt"] else None   # the board brakes it for good
         if all_located and not state.boots.twins and blind is None and braked is None:
             sit = self._situation(state, leader, now_s)
             sit = self.policy.signal(sit)   # fixed block: the wayside sends its speed code through the rails first
-            auth = self._clear_of_obstacles(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
+            auth = self.watch.clear_of(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
             if not self.swept.complete:
                 auth = self._clear_of_unknown(state, auth)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
-            stop_m = self._station_stop(state, now_s)
+            stop_m = self.stops.stop_m(state, now_s)
             if leader is not None and safe_m < state.reach_m:
                 # this train is held by the one ahead: ask that one for fast reports, for a while
-                self._want_fast(leader, safe_m, now_s)
+                self.fast.want(leader, safe_m, now_s)
             state.limited_by = auth.reason
             if not state.estimator.confirmed and v_cap_mps > self.params.restricted_mps:
                 # placed on one reference: it runs to its next one at restricted speed
@@ -639,26 +534,8 @@ class ZoneController:
         if "reverse" in report["flt"] and "reverse" not in before:
             self.refusals.note(state.train_id, "ran backwards", "driven forward, it ran backwards over 2 cm: its "
                                "board brakes it for good; check the motor's wires, then reboot the board", recv_s)
-        if "split" in report["flt"] and state.train_id not in self._parted:
-            self._car_come_off(state, "split" not in before, recv_s)
-
-    def _car_come_off(self, state, just_now, recv_s):
-        """The train line opened: the rear-most tail of the newest picture from before stays occupied, an obstacle
-        to every train (the board brakes its own train for good). Told after the fact (a zone started since), the
-        car may be up to a train's length behind the tail: that stays occupied. Not located, it waits."""
-        if state.report is None or not state.estimator.localized or state.newest_estimate() is None:
-            return
-        picture = state.picture()
-        length_m = state.setup.profile.length_m
-        rear_m = picture.s_m - length_m - picture.behind_m - self.params.k_sigma * picture.sigma_s_m
-        low_m = rear_m if just_now else rear_m - length_m
-        name = f"a car come off {state.train_id}"
-        obstacle = self.obstacles[name] = Obstacle(name, 0.0, 0.0)
-        obstacle.see(recv_s, low_m, rear_m)
-        self._parted.add(state.train_id)
-        log.error("train %s: its train line opened (a car came off?): its board brakes it for good, and the place of "
-                  "its tail stays occupied until this zone restarts; recouple the car, then reboot the board",
-                  state.train_id)
+        if "split" in report["flt"] and state.train_id not in self.watch.parted:
+            self.watch.car_come_off(state, "split" not in before, recv_s)
 
     def _hold_reason(self):
         """Why every train is held (no authority): the first train not located, or not answering this zone."""
@@ -740,71 +617,6 @@ class ZoneController:
         if all_located and len(located) > 1 and (i > 0 or self.layout.closed):
             self._update(located[i - 1], state, True, now_s)
 
-    def _station_stop(self, state, now_s):
-        """Distance (m) to the next scheduled stop, or None (no stop to make now); runs the dwell clock."""
-        stops = state.setup.stops
-        if not stops:
-            return None
-        est = state.newest_estimate()
-        if state.next_stop is None:
-            state.next_stop = self._next_station(est.s_m, stops, at_station_ok=True)
-        if state.next_stop == _NO_MORE_STOPS:
-            return None
-        station = self.layout.station(state.next_stop)
-        to_stop_m = self._signed_ahead(est.s_m, station.s_m)
-        # standing: no speed; or slower than the board's creep speed and braked (no drive: it stops within a loop)
-        # or with no count since the report before (the board's speed decays for a while after its last edge;
-        # waiting for it to reach 0 only delays the dwell)
-        report = state.report
-        standing = report["v_mmps"] == 0 or (report["v_mmps"] < _STANDING_MMPS and (
-            report["duty"] == 0 or not state.odo_moved))
-        if state.dwell_until_s is not None:
-            if now_s >= state.dwell_until_s:
-                state.dwell_until_s = None
-                state.dwells += 1
-                state.leaving = station.name
-                state.next_stop = self._next_station(station.s_m + 0.01, stops)
-                return None
-            return 0.0   # dwelling: held where it stands (the estimate moving by a mm must not start it again)
-        if state.leaving is not None:
-            # the station just left may be the next one too (a one-station list): no stop there, and no overrun,
-            # until the train is past it (its distance then runs the long way round)
-            if state.leaving == station.name and to_stop_m <= station.window_m:
-                return None
-            state.leaving = None
-        if standing and abs(to_stop_m) <= station.window_m:
-            # the dwell runs from the first report the odometer read where it stands: the train stood still by then,
-            # and the reports since only showed its speed measure decaying
-            low, high = state.setup.dwell_s
-            state.dwell_until_s = min(now_s, state.still_since_s) + self._rng.uniform(low, high)
-            return 0.0
-        if to_stop_m < -station.window_m:
-            # passed the stop point beyond its window: count it and move on rather than reverse
-            state.stop_overruns += 1
-            log.warning("train %s overran station %s by %.3f m", state.train_id, station.name, -to_stop_m)
-            state.next_stop = self._next_station(station.s_m + 0.01, stops)
-            return None
-        return to_stop_m
-
-    def _signed_ahead(self, from_s, to_s):
-        """Forward distance from `from_s` to `to_s`; on a loop, a point up to 1 m behind is negative."""
-        ahead = self.layout.ahead_m(from_s, to_s)
-        if self.layout.closed and ahead > self.layout.length_m - 1.0:
-            ahead -= self.layout.length_m
-        return ahead
-
-    def _next_station(self, s_m, stops, at_station_ok=False):
-        """The first station in `stops` ahead of `s_m` along the track; with `at_station_ok`, a station whose stop
-        window holds `s_m` (a train that starts at a platform dwells there first); _NO_MORE_STOPS on a line past its
-        last stop."""
-        def distance(name):
-            station = self.layout.station(name)
-            if at_station_ok and abs(self._signed_ahead(s_m, station.s_m)) <= station.window_m:
-                return 0.0
-            return self.layout.ahead_m(s_m, station.s_m)
-        ahead = [name for name in stops if distance(name) >= 0.0]
-        return min(ahead, key=distance) if ahead else _NO_MORE_STOPS
-
     def _command(self, state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
         """Publish the command for the end of authority `safe_m` metres ahead (None: none granted: stop) and the
         service stop target `stop_m` metres ahead (None: none); the limit is kept as `limit_s` on the track for
@@ -827,7 +639,7 @@ class ZoneController:
             min(eoa_mm, report["odo_mm"] + int(round(stop_m * min(_SCALE_HIGH, max(
                 _SCALE_LOW, state.odometer_per_m_low(0.0))) * 1000.0)))
         held = state.command
-        if stop_m is not None and held is not None and report["v_mmps"] < 2 * _STANDING_MMPS:
+        if stop_m is not None and held is not None and report["v_mmps"] < 2 * STANDING_MMPS:
             if (held.boot == report["boot"] and held.stop_mm < held.eoa_mm and held.stop_mm <= eoa_mm
                     and abs(stop_mm - held.stop_mm) <= _STOP_KEPT_MM):
                 # braking onto the mark: a target a mm or two off the one the board holds is the estimate's noise,
@@ -839,8 +651,9 @@ class ZoneController:
         else:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
-        rpt_ms = self.params.fast_report_ms if self._fast_reports(state, now_s) or self._leaving_soon(state, now_s) \
-            else 0
+        # fast reports rest on train reports (moving block; fixed blocks rest on track circuits)
+        fast = self.policy.fast_reports and self.fast.granted(state, now_s)
+        rpt_ms = self.params.fast_report_ms if fast or self.stops.leaving_soon(state, now_s) else 0
         # the command's fields after boot and seq, in the table's order (Command: sid, rseq, v_mmps, eoa_mm, ttl_ms,
         # acc, dec, stop_mm, rpt_ms, odo_mm_per_m), as a tuple: a zone builds one for every answer it makes
         rest = (self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
@@ -885,48 +698,6 @@ class ZoneController:
             eoa_mm = min(eoa_mm, state.eoa_mm)
         state.eoa_mm = eoa_mm
         return eoa_mm
-
-    def _fast_reports(self, state, now_s):
-        """True when `state`'s train is to report fast: the policy's authority rests on train reports (moving block;
-        fixed blocks rest on track circuits), a train behind is held by it, and it is among the `fast_slots` trains
-        whose followers have the least authority left."""
-        if now_s >= state.fast_until_s or not self.policy.fast_reports or not self.fast_slots:
-            return False
-        wanting = self._fast_wanting
-        if len(wanting) <= self.fast_slots:   # it is among them: no more of them than slots
-            return True
-        if now_s >= self._fast_lapse_s:
-            for st in [st for st in wanting.values() if now_s >= st.fast_until_s]:
-                del wanting[st.train_id]
-                self._unrank_fast(st)
-            # a train's time only grows, and one asked from now on is asked until now + fast_hold_s at least
-            self._fast_lapse_s = min([st.fast_until_s for st in wanting.values()] + [now_s + self.params.fast_hold_s])
-            if len(wanting) <= self.fast_slots:
-                return True
-        # its place among them, least authority left first (ties by id)
-        return bisect_left(self._fast_ranked, (state.fast_need_m, state.train_id)) < self.fast_slots
-
-    @staticmethod
-    def _leaving_soon(state, now_s):
-        """True in the last two report periods of `state`'s dwell: its reports come fast then, so the dwell ends (at
-        the first report on or after its time) within a fast report period, not up to a whole one of the board's."""
-        return state.dwell_until_s is not None and state.dwell_until_s - now_s <= _DWELL_FAST_S
-
-    def _want_fast(self, state, need_m, now_s):
-        """`state`'s follower is held by it with `need_m` of authority left: ask it for fast reports for a while."""
-        state.fast_until_s = now_s + self.params.fast_hold_s
-        if state.train_id in self._fast_wanting:
-            if state.fast_need_m == need_m:
-                return
-            self._unrank_fast(state)
-        else:
-            self._fast_wanting[state.train_id] = state
-        state.fast_need_m = need_m
-        insort(self._fast_ranked, (need_m, state.train_id))
-
-    def _unrank_fast(self, state):
-        ranked = self._fast_ranked
-        del ranked[bisect_left(ranked, (state.fast_need_m, state.train_id))]
 
     def stop_all(self, now_s: float) -> None:
         """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
