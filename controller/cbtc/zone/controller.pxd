@@ -8,19 +8,15 @@ from cbtc.zone.train_state cimport TrainState
 cdef class ZoneController:
     cdef dict __dict__
     cdef object __weakref__
-    cdef public object _moved, _order, _placed, _located, _departing, _departing_for
-    cdef public object fast, _unanswered, _heard, _unheard
+    cdef public object order, ages, _departing, _departing_for, fast, _unanswered
     cdef public object layout, client, now_fn, policy, params, cycle_s
-    cdef public object event_driven, zone_id, _rng, session_id, _estimator_factory, trains
+    cdef public object event_driven, zone_id, _rng, session_id, estimators, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
     cdef public object use_measured_gap, commands, reports, views, obstacles, watch, swept, stops
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)
     cpdef _decoded(self, TrainState state, payload, recv_s)
-    @cython.locals(report=dict, previous=dict)
-    cpdef _feed_estimator(self, TrainState state, report, previous, payload, recv_s)
-    cpdef _watch_answers(self, TrainState state, recv_s)
     cpdef _position_m(self, TrainState state)
     cpdef _update(self, TrainState state, leader, all_located, now_s)
     cpdef _authorise(self, TrainState state, leader, all_located, now_s)

@@ -15,11 +15,8 @@ is stale. Reports that fail validation, come from unknown trains or do not move 
 and dropped.
 """
 
-import hashlib
 import logging
 import random
-from bisect import bisect_left, bisect_right
-from heapq import heappop, heappush
 from math import isfinite
 
 from cbtc.authority.rules import (
@@ -32,30 +29,30 @@ from cbtc.authority.rules import (
 )
 from cbtc.authority.values import Situation
 from cbtc.errors import ConfigError
-from cbtc.estimation.estimate import span_offsets_m
 from cbtc.firmware import obu
 from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.protocol.records import Command
 from cbtc.railway.ips_frame import ips_to_track
 from cbtc.railway.physics import braking_distance_m
 from cbtc.zone import plausibility
+from cbtc.zone.estimators import Estimators
 from cbtc.zone.fast_reports import FastReports, fast_report_slots
-from cbtc.zone.handover import TrainRecord, declare_handed, export_train, import_train
+from cbtc.zone.handover import TrainRecord, export_train, import_train
+from cbtc.zone.indexes import ReportAges, TrainOrder
 from cbtc.zone.obstacle_watch import ObstacleWatch
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
 from cbtc.zone.stations import STANDING_MMPS, StationStops
 from cbtc.zone.supervision import CommandSent, Subscribers, ZoneView, train_view
 from cbtc.zone.swept import SweptTrack
 from cbtc.zone.tails import TailWatch
+from cbtc.zone.train_notes import note_motion_faults, watch_answers
 from cbtc.zone.train_state import TrainState
 
 log = logging.getLogger("cbtc.zone")
-DEAF_WARN_S = 2.0   # a train whose reports do not answer our commands for this long is named in a warning
 _SCALE_LOW = wire.ODO_MM_PER_M_MIN / 1000.0    # the odometer metres per true metre a wheel can have: the band
 _SCALE_HIGH = wire.ODO_MM_PER_M_MAX / 1000.0   # a command may state (no wheel is off by a factor of two)
 _STOP_KEPT_MM = obu.STOP_MADE_MM   # near standstill, a station's stop target moves only when the estimate shifts
 #                                   it further than the board holds short of it
-ENCODER_FAULTS = frozenset(("enc_fail", "enc_stall"))   # its odometer cannot be trusted: locate the train afresh
 
 
 
@@ -65,18 +62,10 @@ class ZoneController:
                  event_driven: bool = True, report_budget_hz: float = 400.0):
         if not trains:
             raise ValueError("zone controller: no trains configured")
-        # the located trains in position order, kept up to date from the trains whose position may have changed
-        self._moved = set()       # states with a new report, or located afresh, since the order was last brought up
-        self._order = []          # (s_m, rank, state) of the located trains, sorted
-        self._placed = {}         # state -> its entry in _order
-        self._located = []        # the states of _order, in its order (kept beside it, changed in place)
+        self.order = TrainOrder(layout.closed)   # the located trains in position order
         self._departing = {}      # train id -> state, trains whose newest authority is a departure
         self._departing_for = {}  # state -> the profiles of the departing trains but it (Situation.departing), kept
         #                           until a train's departure begins or ends
-        self._unanswered = set()  # states whose newest report does not echo this controller's session
-        self._heard = []          # heap of (receive time, rank, state) of reports taken; entries a newer report of
-        #                           its train replaced are dropped when they come to the top
-        self._unheard = 0         # trains that have not reported yet
         self.layout = layout
         self.client = client
         self.now_fn = now_fn
@@ -90,11 +79,12 @@ class ZoneController:
         self.stops = StationStops(layout, self._rng)
         if estimator_factory is None:
             from cbtc.estimation.ukf_estimator import UkfEstimator as estimator_factory
-        self._estimator_factory = estimator_factory
+        self.refusals = RefusalLog(log)
+        self.estimators = Estimators(layout, self.params, self.refusals, estimator_factory)
         self.trains = {}
         self._add_trains(trains)
-        self._unanswered = set(self.trains.values())
-        self._unheard = len(self.trains)
+        self._unanswered = set(self.trains.values())   # states whose newest report does not echo this session
+        self.ages = ReportAges(len(self.trains))   # how old each train's newest report is
         if not layout.tags:
             log.warning("layout %s has no RFID tags: no balise can confirm where a train is, so every train placed by "
                         "the IPS alone runs at restricted speed for good; lay tags between the rails and list them in "
@@ -102,7 +92,6 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.swept = SweptTrack(layout)   # the track vouched for; the rest is occupied (cbtc.zone.swept)
-        self.refusals = RefusalLog(log)
         self.watch = ObstacleWatch(layout, [st.setup.profile for st in self.trains.values()], self.params,
                                    self.refusals)   # what stands on the track and is no train of the zone
         self.obstacles = self.watch.obstacles   # name -> Obstacle (the watch's), read at every authority
@@ -126,8 +115,8 @@ class ZoneController:
                 raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
             for name in setup.stops:
                 layout.station(name)  # raises LayoutError naming the known stations
-            state = TrainState(setup, self._estimator_factory(layout, setup.profile), rank=len(self.trains),
-                               on_change=self._moved.add)
+            state = TrainState(setup, self.estimators.factory(layout, setup.profile), rank=len(self.trains),
+                               on_change=self.order.moved.add)
             state.reach_m = following_reach_m(setup.profile)
             state.horizon_m = horizon_m(setup.profile, self.params)
             state.track_m = layout.length_m
@@ -187,7 +176,7 @@ class ZoneController:
         try:
             self._take_report(state, payload, recv_s)
         except Exception as exc:   # one train's bad data never stops the zone
-            self._train_failed(state, exc, "handling a report", payload, recv_s)
+            self.estimators.train_failed(state, exc, "handling a report", payload, recv_s)
 
     def _refuse(self, state, klass, reason, recv_s, advice=""):
         state.reports_rejected += 1
@@ -216,33 +205,30 @@ class ZoneController:
         if state.boots.accept(report, recv_s, self.session_id):
             # a new boot: the board restarted; its clock, odometer and sequence began again
             log.warning("train %s restarted (boot %d): locating it afresh", state.train_id, report["boot"])
-            state.restart(self._estimator_factory(self.layout, state.setup.profile))
+            state.restart(self.estimators.fresh(state))
             previous = None
         if state.boots.answered:
             self._unanswered.discard(state)
         else:
             self._unanswered.add(state)
-        self._watch_answers(state, recv_s)
+        watch_answers(state, recv_s)
         state.clock.observe(report["t_ms"], recv_s)
         report, dropped = plausibility.plausible_parts(report, None if previous is None else previous["odo_mm"])
         if dropped:
             state.measurements_dropped += dropped
             self.refusals.note(state.train_id, "measurement", f"{dropped} IPS fix, tag or range stamped outside "
                                f"its report (t_ms {report['t_ms']})", recv_s)
-        self._note_motion_faults(state, report, previous, recv_s)
-        report = self._feed_estimator(state, report, previous, payload, recv_s)
+        note_motion_faults(state, report, previous, recv_s, self.refusals, self.watch)
+        report = self.estimators.feed(state, report, previous, payload, recv_s)
         state.odo_moved = previous is None or report["odo_mm"] != previous["odo_mm"]
         state.report = report
-        if state.report_recv_s is None:
-            self._unheard -= 1
-        if state.report_recv_s != recv_s:   # one entry a train in the heap for each receive time
-            heappush(self._heard, (recv_s, state.rank, state))
+        self.ages.took(state, recv_s)
         state.report_recv_s = recv_s
         state.report_t_s = state.clock.to_controller_s(report["t_ms"])
         if state.odo_moved:
             state.still_since_s = state.report_t_s
         state.took_report()
-        self._moved.add(state)
+        self.order.moved.add(state)
         if not self.swept.complete and state.estimator.localized:
             self._sweep(state)
         if self.reports:
@@ -269,43 +255,6 @@ class ZoneController:
                 if " names version " in exc.reason else ""
             self._refuse(state, "invalid report", exc.reason, recv_s, advice=advice)
             return None
-        return report
-
-    def _feed_estimator(self, state, report, previous, payload, recv_s):
-        """Hand an accepted report to the train's estimator, unless its encoder failed or its odometer jumped (then
-        the train is located afresh); the report as taken (its tags dropped when the odometer's frame changed)."""
-        faults = ENCODER_FAULTS.intersection(report["flt"])
-        jump_mm = 0 if previous is None else plausibility.odometer_jump_mm(report, previous,
-                                                                           state.setup.profile.v_noload_mps)
-        if faults:
-            # the board has tripped and its odometer may be anywhere: a fresh estimator, fed from the first healthy
-            # report on, locates the train again before it gets authority
-            if not state.encoder_failed:
-                state.encoder_failed = True
-                state.encoder_failures += 1
-                self.refusals.note(state.train_id, "encoder failed", f"{', '.join(sorted(faults))}: no authority "
-                                   f"until it reports healthy and is located again; every train held", recv_s)
-            self._relocate_wheel_lost(state)
-            state.estimator.distrust_wheel()   # what the wheel read before says nothing of how it reads now
-        else:
-            state.encoder_failed = False
-            if jump_mm:
-                # an odometer the train cannot have travelled: its frame starts again with this report
-                state.odometer_jumps += 1
-                self.refusals.note(state.train_id, "odometer jump", f"{jump_mm} mm further than the train can travel: "
-                                   f"locating it afresh", recv_s)
-                self._relocate_wheel_lost(state)
-                if report["tags"]:   # stamped with an odometer of either frame: none places the fresh estimate
-                    state.measurements_dropped += len(report["tags"])
-                    report = dict(report, tags=[])
-            if state.handed is not None:
-                declare_handed(state, report)
-            state.estimator.on_report(report, state.clock)
-            if state.estimator.localized and not state.estimator.doubt_kept:
-                state.doubt_span = None   # a balise has confirmed where it is
-            if not self._filter_healthy(state):
-                self._train_failed(state, ValueError("its filter turned non-finite or lost positive definiteness"),
-                                   "updating its filter", payload, recv_s)
         return report
 
     def _sweep(self, state):
@@ -338,83 +287,12 @@ class ZoneController:
             auth = auth.cut_to(max(0.0, distance_m), "track not swept or cleared ahead")
         return auth
 
-    def _relocate_wheel_lost(self, state):
-        """Start the train's estimator afresh (its odometer is lost). When its sensors disagreed just before (an IPS
-        off by a metre, or the wheel), either may be the one that is wrong: the fresh estimator is handed where the
-        estimate covered the train (UkfEstimator.keep_doubt), so fixes alone do not place it, nor its follower's
-        authority, outside that; the span is kept, not widened again, over further restarts until a balise confirms
-        the position."""
-        if state.report is not None and state.estimator.localized:
-            est = state.newest_estimate()
-            if est is not None:
-                widen_m = self.params.k_sigma * est.sigma_s_m
-                if state.doubt_span is None:
-                    if est.ahead_m or est.behind_m:   # its sensors disagreed: either may be the one that is wrong
-                        state.doubt_span = (est.s_m - est.behind_m - widen_m, est.s_m + est.ahead_m + widen_m)
-                else:   # still unconfirmed: the span kept, and where it was placed since (not widened again)
-                    behind_m, ahead_m = span_offsets_m(self.layout, state.doubt_span, est.s_m)
-                    state.doubt_span = (est.s_m + min(behind_m, -est.behind_m, -widen_m),
-                                        est.s_m + max(ahead_m, est.ahead_m, widen_m))
-        state.relocate(self._estimator_factory(self.layout, state.setup.profile))
-        if state.doubt_span is not None:
-            state.estimator.keep_doubt(*state.doubt_span)
-
-    @staticmethod
-    def _filter_healthy(state):
-        healthy = getattr(state.estimator, "healthy", None)
-        return healthy is None or healthy()
-
-    def _train_failed(self, state, exc, where, payload, now_s):
-        """An exception in one train's handling: said once per kind with the payload's digest, never the payload;
-        the train is located afresh (its filter may hold anything) and gets no authority until it is."""
-        state.failures += 1
-        kind = type(exc).__name__
-        if kind not in state.failures_said:
-            state.failures_said.add(kind)
-            data = payload if isinstance(payload, (bytes, bytearray)) else repr(payload).encode()
-            log.error("train %s: %s raised %s (%s; payload sha256 %s): locating it afresh, no authority until then",
-                      state.train_id, where, kind, short(str(exc)), hashlib.sha256(data).hexdigest()[:16])
-        state.relocate(self._estimator_factory(self.layout, state.setup.profile))
-
-    def _watch_answers(self, state, recv_s):
-        """Warn once when a train's reports have not answered our commands for DEAF_WARN_S: the zone holds every
-        train meanwhile, and the user needs to know which board and why."""
-        if state.boots.answered or state.answered_s is None:
-            state.deaf_since_s = None
-        elif state.deaf_since_s is None:
-            state.deaf_since_s = recv_s
-        elif recv_s - state.deaf_since_s >= DEAF_WARN_S:
-            log.warning("train %s: its reports have not answered this controller's commands for %.0f s, so no train "
-                        "gets authority; check that its board has the same key as the controller and that no other "
-                        "controller commands it (or its reports are replayed)", state.train_id,
-                        recv_s - state.deaf_since_s)
-            state.deaf_since_s = float("inf")   # said once, until it answers again
-
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
     def located(self):
-        """Train states with a finite position estimate, ordered by head position along the track (ties in the zone's
-        order). Kept as an index: only the trains whose position may have changed since (a report taken, located
-        afresh) are placed again, so a report costs the same whatever the fleet. The list is changed in place by the
-        next call: read it at once, never change it."""
-        if self._moved:
-            moved = sorted(self._moved, key=lambda st: st.rank)
-            self._moved.clear()
-            for st in moved:
-                old = self._placed.pop(st, None)
-                if old is not None:
-                    i = bisect_left(self._order, old)
-                    del self._order[i]
-                    del self._located[i]
-                if st.report is not None and st.estimator.localized:
-                    s_m = self._position_m(st)   # may locate it afresh (its filter failed): then None
-                    if s_m is not None and st not in self._moved:
-                        entry = (s_m, st.rank, st)
-                        i = bisect_right(self._order, entry)
-                        self._order.insert(i, entry)
-                        self._located.insert(i, st)
-                        self._placed[st] = entry
-        return self._located
+        """Train states with a finite position estimate, ordered by head position along the track (TrainOrder): read
+        the list at once, never change it."""
+        return self.order.located(self._position_m)
 
     def _position_m(self, state):
         """The train's head position (m) at its newest report, or None; a filter that fails or turns non-finite
@@ -425,7 +303,7 @@ class ZoneController:
                 return None if est is None else est.s_m
             raise ValueError("non-finite estimate")
         except Exception as exc:
-            self._train_failed(state, exc, "estimating its position", b"", self.now_fn())
+            self.estimators.train_failed(state, exc, "estimating its position", b"", self.now_fn())
             return None
 
     def _all_located(self, located):
@@ -439,24 +317,18 @@ class ZoneController:
         self.cycles += 1
         located = self.located()
         all_located = self._all_located(located)
+        leader_of = self.order.leader_of
         for i, state in enumerate(located):
             if self.event_driven and state.answered_s is not None and now_s - state.answered_s < self.cycle_s:
                 continue
-            self._update(state, self._leader_of(located, i), all_located, now_s)
-
-    def _leader_of(self, located, i):
-        """The train ahead of `located[i]` (ordered by head position), or None: alone, or at the front of an open
-        line, where the end of the track limits it."""
-        if len(located) < 2 or (i == len(located) - 1 and not self.layout.closed):
-            return None
-        return located[(i + 1) % len(located)]
+            self._update(state, leader_of(located, i), all_located, now_s)
 
     def _update(self, state, leader, all_located, now_s):
         """Command `state`'s train; an exception makes that train be located afresh, and the others go on."""
         try:
             self._authorise(state, leader, all_located, now_s)
         except Exception as exc:
-            self._train_failed(state, exc, "computing its authority", b"", now_s)
+            self.estimators.train_failed(state, exc, "computing its authority", b"", now_s)
 
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
@@ -524,18 +396,6 @@ class ZoneController:
                                f"configured length ({state.setup.profile.length_m:.2f} m)", t_s,
                                "the train behind keeps back from there; check the train's length in the "
                                "configuration, and whether a car has come off")
-
-    def _note_motion_faults(self, state, report, previous, recv_s):
-        """Log, once each time it begins, a board's roll-away hold and its reverse-movement trip."""
-        before = () if previous is None else previous["flt"]
-        if "hold" in report["flt"] and "hold" not in before:
-            self.refusals.note(state.train_id, "rolled back", "standing undriven, it rolled back over 2 cm (a slope "
-                               "its brake does not hold?): its board drives it back to where it stood", recv_s)
-        if "reverse" in report["flt"] and "reverse" not in before:
-            self.refusals.note(state.train_id, "ran backwards", "driven forward, it ran backwards over 2 cm: its "
-                               "board brakes it for good; check the motor's wires, then reboot the board", recv_s)
-        if "split" in report["flt"] and state.train_id not in self.watch.parted:
-            self.watch.car_come_off(state, "split" not in before, recv_s)
 
     def _hold_reason(self):
         """Why every train is held (no authority): the first train not located, or not answering this zone."""
@@ -608,12 +468,11 @@ class ZoneController:
     def _answer(self, state, now_s):
         """Event-driven: a fresh report is answered at once, and it extends its follower's authority at once too."""
         located = self.located()
-        entry = self._placed.get(state)
-        if entry is None:
+        i = self.order.index_of(state)
+        if i is None:
             return
         all_located = self._all_located(located)
-        i = bisect_left(self._order, entry)
-        self._update(state, self._leader_of(located, i), all_located, now_s)
+        self._update(state, self.order.leader_of(located, i), all_located, now_s)
         if all_located and len(located) > 1 and (i > 0 or self.layout.closed):
             self._update(located[i - 1], state, True, now_s)
 
@@ -708,27 +567,8 @@ class ZoneController:
                 self._command(state, None, None, 0.0, beta_mps2, beta_mps2, now_s)
 
     def _leader_stale(self, state, now_s):
-        """True when the data of some other train is older than the limit: the authority must not extend. The
-        oldest report taken of another train decides: the heap of reports has it at the top, or just below `state`."""
-        if self._unheard > (state.report_recv_s is None):
-            return True   # some other train has not reported at all
-        heard = self._heard
-        oldest = self._oldest_heard()
-        if oldest is None:
-            return False
-        if oldest[2] is state:
-            heappop(heard)
-            other = self._oldest_heard()
-            heappush(heard, oldest)
-            oldest = other
-        return oldest is not None and now_s - oldest[0] > self.params.max_leader_age_s
-
-    def _oldest_heard(self):
-        """The heap's top entry once every entry a newer report replaced is dropped from it; None when empty."""
-        heard = self._heard
-        while heard and heard[0][0] != heard[0][2].report_recv_s:
-            heappop(heard)
-        return heard[0] if heard else None
+        """True when the data of some other train is older than the limit: the authority must not extend."""
+        return self.ages.other_stale(state, now_s, self.params.max_leader_age_s)
 
     def checked_gap_m(self, state, gap_est_m, sigma_m, now_s):
         """The gap (m) the authority may use from the estimated one and `state`'s own measured gap
