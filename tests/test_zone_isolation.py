@@ -127,7 +127,7 @@ def test_the_zones_order_of_trains_is_always_what_sorting_them_afresh_gives():
         assert zc._all_located(located) == (len(located) == len(zc.trains)
                                             and all(st.boots.answered for st in located))
         for st in zc.trains.values():
-            assert zc._leader_stale(st, _now_s) == any(
+            assert zc.ages.other_stale(st, _now_s, zc.params.max_leader_age_s) == any(
                 other is not st and (other.report_recv_s is None
                                      or _now_s - other.report_recv_s > zc.params.max_leader_age_s)
                 for other in zc.trains.values())

@@ -8,11 +8,11 @@ from cbtc.zone.train_state cimport TrainState
 cdef class ZoneController:
     cdef dict __dict__
     cdef object __weakref__
-    cdef public object order, ages, _departing, _departing_for, fast, _unanswered
+    cdef public object order, ages, departures, fast, _unanswered
     cdef public object layout, client, now_fn, policy, params, cycle_s
     cdef public object event_driven, zone_id, _rng, session_id, estimators, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
-    cdef public object use_measured_gap, commands, reports, views, obstacles, watch, swept, stops
+    cdef public object use_measured_gap, commands, reports, views, obstacles, watch, swept, stops, writer
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)
@@ -23,6 +23,3 @@ cdef class ZoneController:
     cpdef _took(self, TrainState state, auth)
     cpdef _answer(self, TrainState state, now_s)
     cpdef _command(self, TrainState state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
-    @cython.locals(report=dict)
-    cpdef _end_of_authority_mm(self, TrainState state, safe_m, scale_low, dec_mps2, now_s)
-    cpdef _leader_stale(self, TrainState state, now_s)

@@ -10,10 +10,14 @@ reaches back that far and the 4 sigma. `extra_behind_m` is added to what the aut
 off. A beacon heard and then silent leaves its last fix occupied: the rear point stays there, however far the head
 moves on, until the beacon is heard again. A train configured with a beacon (`TrainProfile.tail_beacon`) reaches
 back over the whole track until its beacon has been heard three times; one configured without stands on its
-configured length. Pure: positions and times in, metres out.
+configured length. TailWatch is pure (positions and times in, metres out); take_tail_fix feeds it a
+train's fixes.
 """
 
 from collections import deque
+
+from cbtc.railway.ips_frame import ips_to_track
+from cbtc.zone.refusals import UNKNOWN
 
 TOL_M = 0.10        # a median length this far beyond the configured one is no IPS noise (one sample's sigma is
                     # 6 cm on the default layouts, the median's of five 3.3 cm): the train is longer
@@ -105,3 +109,40 @@ class TailWatch:
             return False
         grew_m = sorted(lengths[-3:])[1] - sorted(lengths[:3])[1]
         return abs(grew_m) < 0.25 * head_m
+
+
+def see_tail_fix(state, layout, refusals, t_s, x_mm, y_mm):
+    """Set a fix of `state`'s tail beacon (IPS frame mm, at controller time `t_s`) against its head estimate then;
+    the first time it puts the tail further back than configured, say so."""
+    train_id = state.train_id
+    if not state.estimator.localized or state.clock.offset_s is None:
+        return
+    est = state.estimator.estimate(t_s)
+    if est is None:
+        return
+    x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, layout.ips)
+    if state.tail is None:
+        state.tail = TailWatch(state.setup.profile.length_m, layout.loop_length_m)
+    tail = state.tail
+    was_longer = tail.longer
+    tail.see(t_s, layout.project(x_m, y_m), est.s_m)
+    if tail.extra_behind_m(est.s_m, t_s) and not was_longer:
+        refusals.note(train_id, "tail further back", f"its tail beacon puts its tail further back than its "
+                      f"configured length ({state.setup.profile.length_m:.2f} m)", t_s,
+                      "the train behind keeps back from there; check the train's length in the configuration, and "
+                      "whether a car has come off")
+
+
+def take_tail_fix(trains, layout, refusals, train_id, t_s, x_mm, y_mm):
+    """A fix of the beacon on the last car of train `train_id` (`trains`: the zone's), IPS frame mm, taken at
+    controller time `t_s` (an IPS modem reports every beacon's fixes). Whatever it holds, it never stops the zone: a
+    train whose check fails has no tail vouched for until its beacon is heard afresh."""
+    state = trains.get(train_id)
+    if state is None:
+        refusals.note(UNKNOWN, "tail fix", f"a tail beacon fix for train {train_id!r}, not in this zone", t_s)
+        return
+    try:
+        see_tail_fix(state, layout, refusals, t_s, x_mm, y_mm)
+    except Exception as exc:
+        state.tail = None
+        refusals.note(train_id, "tail fix", f"checking its tail failed: {exc!r}", t_s)

@@ -1,5 +1,5 @@
 """What a train's reports say of its board that the zone tells the user: reports that do not answer its commands,
-a roll-away hold, a reverse-movement trip, a train line come open."""
+a roll-away hold, a reverse-movement trip, a train line come open, an estimated gap its ranging disagrees with."""
 
 import logging
 
@@ -34,3 +34,18 @@ def note_motion_faults(state, report, previous, recv_s, refusals, watch):
                       "board brakes it for good; check the motor's wires, then reboot the board", recv_s)
     if "split" in report["flt"] and state.train_id not in watch.parted:
         watch.car_come_off(state, "split" not in before, recv_s)
+
+
+def note_gap(state, alarm, gap_est_m, use_measured_gap):
+    """Keep `state`'s "picture disagrees" alarm (`alarm`: None when no measured gap was set against the estimated
+    one), said once each time it is raised."""
+    if alarm is None:
+        state.gap_alarm = False
+        return
+    if alarm and not state.gap_alarm:
+        state.gap_alarms += 1
+        log.warning("train %s: picture disagrees: estimated gap %.3f m, measured %.3f m by its ranging; %s",
+                    state.train_id, gap_est_m, state.rng_gap[1],
+                    "the authority takes the shorter; check the two trains' IPS and wheels" if use_measured_gap
+                    else "the authority rests on the estimate alone; the board's guard brakes on the measurement")
+    state.gap_alarm = alarm

@@ -3,8 +3,10 @@ estimator, the boots, the command held, the plan, the counts), with the per-repo
 
 from dataclasses import dataclass, field
 
+from cbtc.authority.rules import following_reach_m, horizon_m
 from cbtc.authority.values import TrainPicture
 from cbtc.estimation.estimate import BoardClock
+from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone.boots import BootTracker
 
@@ -135,3 +137,22 @@ class TrainState:
         self.limit_s = None
         if self.on_change is not None:
             self.on_change(self)
+
+
+def train_states(setups, layout, params, estimator_factory, on_change) -> dict:
+    """{train id: a TrainState} for each TrainSetup, its fixed distances worked out once; ValueError or LayoutError
+    naming a bad id, a train configured twice or a stop the layout does not have."""
+    trains = {}
+    for setup in setups:
+        wire.check_train_id(setup.train_id)
+        if setup.train_id in trains:
+            raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
+        for name in setup.stops:
+            layout.station(name)  # raises LayoutError naming the known stations
+        state = TrainState(setup, estimator_factory(layout, setup.profile), rank=len(trains),
+                           on_change=on_change)
+        state.reach_m = following_reach_m(setup.profile)
+        state.horizon_m = horizon_m(setup.profile, params)
+        state.track_m = layout.length_m
+        trains[setup.train_id] = state
+    return trains
