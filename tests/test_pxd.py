@@ -20,7 +20,7 @@ def declared(pxd: pathlib.Path) -> dict:
     for line in pxd.read_text().splitlines():
         if m := re.match(r"cdef class (\w+):", line):
             current = classes[m.group(1)] = set()
-        elif m := re.match(r"\s+cdef public object (.+)", line):
+        elif m := re.match(r"\s+cdef public \w+ (.+)", line):
             current.update(name.strip() for name in m.group(1).split(","))
         elif m := re.match(r"\s+cdef (?:dict __dict__|object __weakref__)$", line):
             current.add(line.split()[-1])

@@ -1,6 +1,10 @@
 """What the policy decides a train's authority from, beyond the two trains' pictures: the trains departing (for
 Takagi's departure control) and every train's span as the track circuits see it (for fixed blocks)."""
 
+from operator import attrgetter
+
+_RANK = attrgetter("rank")   # the zone's order of its trains
+
 
 class Departures:
     def __init__(self):
@@ -14,9 +18,8 @@ class Departures:
             return ()
         departing = self._for.get(state)
         if departing is None:
-            departing = self._for[state] = tuple(
-                other.setup.profile for other in sorted(self._departing.values(), key=lambda st: st.rank)
-                if other is not state)
+            departing = self._for[state] = tuple([
+                other.setup.profile for other in sorted(self._departing.values(), key=_RANK) if other is not state])
         return departing
 
     def took(self, state, mode):
@@ -54,5 +57,5 @@ def hold_reason(trains, unanswered):
         if not st.estimator.localized:
             return f"held: {st.train_id} not located"
     if unanswered:
-        return f"held: {min(unanswered, key=lambda st: st.rank).train_id} not answering"
+        return f"held: {min(unanswered, key=_RANK).train_id} not answering"
     return "held"

@@ -1,0 +1,15 @@
+# The compiled build's C type for Estimators (setup.py, tests/test_pxd.py): a train's state is a TrainState, so its
+# slots are read directly; a report is a dict
+
+cimport cython
+
+from cbtc.zone.train_state cimport TrainState
+
+cdef class Estimators:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object layout, params, refusals, factory
+
+    cpdef fresh(self, TrainState state)
+    @cython.locals(report=dict, previous=dict)
+    cpdef feed(self, TrainState state, report, previous, payload, recv_s)
