@@ -4,7 +4,8 @@ and a balise that disagrees places it afresh instead of being turned away."""
 
 import pytest
 
-from cbtc.estimation.ukf_estimator import UkfEstimator, UkfParams
+from cbtc.estimation.ukf_estimator import UkfEstimator
+from cbtc.estimation.ukf_params import UkfParams
 from cbtc.layout_files import load_layout
 from cbtc.railway import balise
 from cbtc.railway.train_profile import TrainProfile

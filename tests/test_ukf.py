@@ -14,7 +14,7 @@ from scipy.stats import chi2
 
 from cbtc.cli import main
 from cbtc.errors import ConfigError
-from cbtc.estimation import ukf_estimator
+from cbtc.estimation import ukf_estimator, ukf_params
 from cbtc.estimation.estimate import BoardClock
 from cbtc.estimation.track_ukf import (
     NoiseModel,
@@ -445,7 +445,7 @@ def test_started_afresh_and_placed_by_the_ips_alone_the_estimate_covers_where_th
     feed(est, standing)
     placed = est.estimate(controller_s(standing[-1]["t_ms"]))
     assert est.localized and abs(along_error_m(loop, placed.s_m, 1.0)) < 0.05
-    assert placed.ahead_m >= 0.8 and placed.behind_m == pytest.approx(ukf_estimator.UkfParams().ips_bias_m, abs=0.01)
+    assert placed.ahead_m >= 0.8 and placed.behind_m == pytest.approx(ukf_params.UkfParams().ips_bias_m, abs=0.01)
     est.keep_doubt(0.0, 3.0)                       # once located, a later call changes nothing
     last = standing[-1]
     data = balise.image(77, float(loop.wrap(1.0 + profile.rfid_range_m))).hex()
@@ -460,8 +460,8 @@ def test_started_afresh_and_placed_by_the_ips_alone_the_estimate_covers_where_th
     tagged.keep_doubt(1.75, 1.85)
     feed(tagged, [dict(standing[0], ips=None, tags=[["0a0b0c0d", 0, standing[0]["t_ms"], 0, data]])])
     first = tagged.estimate(controller_s(standing[0]["t_ms"]))
-    assert tagged.localized and first.ahead_m == pytest.approx(ukf_estimator.UkfParams().tag_bias_m, abs=0.01)
-    assert first.behind_m == pytest.approx(ukf_estimator.UkfParams().tag_bias_m, abs=0.01)
+    assert tagged.localized and first.ahead_m == pytest.approx(ukf_params.UkfParams().tag_bias_m, abs=0.01)
+    assert first.behind_m == pytest.approx(ukf_params.UkfParams().tag_bias_m, abs=0.01)
 
 
 @pytest.mark.parametrize("head_past_tag_m", [-0.015, 0.0, 0.015])
@@ -754,7 +754,7 @@ def test_every_filter_setting_is_in_the_fusion_doc_with_its_default():
     import pathlib
     import re
 
-    from cbtc.estimation.ukf_estimator import UkfParams
+    from cbtc.estimation.ukf_params import UkfParams
 
     doc = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "fusion.md").read_text()
     rows = {}

@@ -4,18 +4,7 @@
 cimport cython
 
 from cbtc.estimation.track_ukf cimport TrackUkf
-
-cdef class _Event:
-    cdef dict __dict__
-    cdef object __weakref__
-    cdef public object t_s, kind, data, sort_key
-
-cdef class _State:
-    cdef dict __dict__
-    cdef object __weakref__
-    cdef public object snap, ips_used, ips_rejected, tags_used, tags_rejected, gated
-    cdef public object relocations, consensus, innovations, disagree, disagreements, tag_offset
-    cdef public object speed_steps, doubt, pending, agreeing, reach, tag_story
+from cbtc.estimation.ukf_history cimport FilterEvent, FilterState
 
 cdef class UkfEstimator:
     cdef dict __dict__
@@ -26,7 +15,7 @@ cdef class UkfEstimator:
     cdef public object _first_odo_m, _board_t_s, _top_mps, _rolled_m, _roll_run_m, _board_v_mps
     cdef public object _board_duty_pct, _board_before, _envelope, _motor, speed_drifts, _scale_sigma0
 
-    @cython.locals(f=TrackUkf, new=_State)
-    cpdef _apply(self, _State state, _Event event)
+    @cython.locals(f=TrackUkf, new=FilterState)
+    cpdef _apply(self, FilterState state, FilterEvent event)
 
     cpdef on_report(self, dict report, board_clock)

@@ -23,12 +23,10 @@ keeps its own position; a balise read that the filter gates but that agrees with
 
 import statistics
 from bisect import bisect_right
-from dataclasses import dataclass, fields
 from math import hypot, isfinite, sqrt
 
 from numpy.linalg import LinAlgError
 
-from cbtc.errors import ConfigError
 from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.estimation.motor_gain import MotorGain
@@ -38,7 +36,6 @@ from cbtc.estimation.track_ukf import (
     K_LOW,
     D,
     K,
-    NoiseModel,
     S,
     TrackUkf,
     V,
@@ -46,77 +43,11 @@ from cbtc.estimation.track_ukf import (
     initial_covariance,
     tag_read_model,
 )
+from cbtc.estimation.ukf_history import FilterEvent, FilterState
+from cbtc.estimation.ukf_params import make_params, noise_model
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
-
-
-@dataclass(frozen=True)
-class UkfParams:
-    """Filter settings that are not sensor properties (those come from the TrainProfile); see docs/fusion.md."""
-
-    # white-acceleration PSD: ~0.3 m/s^2 changes of acceleration per motor time constant
-    accel_psd_m2ps3: float = 0.02
-    scale_sigma: float = 0.03         # prior 1-sigma of the encoder scale error; 0 leaves it out of the state
-    scale_walk_per_sqrt_m: float = 1e-3  # scale error drift per sqrt(metre) travelled (wear, dirt, load)
-    slip_length_m: float = 0.02       # distance over which wheel slip is correlated (a wheel's roll per loop tick)
-    tag_sigma_m: float = 0.002        # tag placement and reader-field spread (1-sigma)
-    gate_prob: float = 0.999          # innovation gate: reject what falls outside this chi-square mass
-    relocate_after: int = 8           # gated IPS fixes looked at together: where enough agree, the sensors disagree
-    bias_fixes: int = 16              # newest IPS fixes whose innovations' median tells a bias of the wheel (from
-    #                                   relocate_after of them on): a spin inside the speed envelope's band shows there
-    locate_fixes: int = 3             # IPS fixes that must agree before the IPS alone places (or re-places) a train
-    ips_bias_m: float = 0.3           # the lasting error an IPS placement may carry (multipath: a beacon's path
-    #                                   reflected off a wall or a hand is tens of cm long; its noise is ips_sigma_m),
-    #                                   covered until a balise confirms it
-    tag_bias_m: float = 0.03          # how far a tag may lie from where the layout says (laid by hand; cbtc calibrate
-    #                                   measures them to mm), covered until a second reference confirms a tag placement
-    history_s: float = 2.0            # how late a measurement may arrive and still be applied at its time
-    step_tol_mps: float = 0.04        # a report's speed may change this much beyond what traction or brakes allow
-    step_scale_sigma: float = 0.15    # a speed step beyond that re-opens the scale to this 1-sigma (wheel slip/spin:
-    #                                   3 sigma cover a wheel that reads 0.7-1.8 times the travel)
-    drift_tol_mps: float = 0.02       # reported speeds may leave the motor's band (below) by this much, plus
-    drift_tol_share: float = 0.03     # this share of the speed (the scale learnt, random slip)
-    motor_tol: float = 0.10           # friction, traction and (until learnt) no-load speed are known within this share
-    motor_learnt_tol: float = 0.04    # ... its no-load speed within this once learnt (cbtc.estimation.motor_gain)
-    motor_learn_s: float = 10.0       # driving it is learnt over (s): the median of that many 1 s windows
-    motor_needed_s: float = 3.0       # driving learnt before the learnt band is used (s)
-    step_window_s: float = 1.0        # reported speeds are held to what the motor allows over this long (s)
-
-    def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if not isinstance(value, (int, float)) or value != value or value < 0:
-                raise ConfigError(f"UKF estimator: {f.name} must be a number >= 0, got {value!r}")
-        if not 0.5 < self.gate_prob < 1.0:
-            raise ConfigError(f"UKF estimator: gate_prob is a probability in (0.5, 1), got {self.gate_prob}")
-        if self.relocate_after < 1 or self.history_s <= 0 or not 1 <= self.locate_fixes <= self.relocate_after:
-            raise ConfigError("UKF estimator: relocate_after must be >= 1, history_s > 0 and locate_fixes between 1 "
-                              "and relocate_after")
-
-
-def make_params(params: dict) -> UkfParams:
-    known = {f.name for f in fields(UkfParams)}
-    unknown = set(params) - known
-    if unknown:
-        raise ConfigError(f"UKF estimator: unknown settings {sorted(unknown)}; known: {sorted(known)}")
-    return UkfParams(**params)
-
-
-def noise_model(profile, params: UkfParams) -> NoiseModel:
-    """The filter's noise from the train's sensor profile and the filter settings."""
-    count_m = 1.0 / profile.counts_per_m
-    return NoiseModel(
-        accel_psd_m2ps3=params.accel_psd_m2ps3,
-        slip_var_m2_per_m=profile.encoder_slip_sigma ** 2 * params.slip_length_m,
-        scale_var_per_m=params.scale_walk_per_sqrt_m ** 2,
-        odo_var_m2=(count_m ** 2 + 0.001 ** 2) / 12.0,   # one count, then integer millimetres on the wire
-        ips_var_m2=profile.ips_sigma_m ** 2,
-        tag_var_m2=params.tag_sigma_m ** 2,
-        rfid_range_m=profile.rfid_range_m,
-        gate_prob=params.gate_prob,
-    )
-
 
 _WHEEL_LOWEST = 1.0 + K_LOW   # odometer m per true m: the least a wheel reads (and a command may state)
 _WHEEL_HIGHEST = 1.0 + K_HIGH  # ... and the most
@@ -126,71 +57,8 @@ _SPEED_LAG_S = 0.03    # a board's measured speed lags the train's at most this:
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
 _STORY_TOL_M = 0.1    # two gated balise reads in a row whose stories differ by no more (m) tell the same story
 _WORN_SHARE = 0.15    # ... that a wheel this far wrong (worn, dirty, slipping: of the travel) can tell
-_KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
 _ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
 _MOVING_MPS = 0.05   # speeds from here up are steady enough for a step between two reports to tell of the wheel
-
-
-class _Event:
-    """One measurement at board time `t_s`. Events sort by time, then kind and value, never by arrival, so the same
-    measurements give the same filter whatever order they came in."""
-
-    __slots__ = ("t_s", "kind", "data", "sort_key")
-
-    def __init__(self, t_s, kind, data):
-        self.t_s = t_s
-        self.kind = kind      # "odo": (d_m, v_mps); "ips": (x_m, y_m); "tag": (tag_s_m, d_m, in_field, span_s);
-        #                       "roll": (step_m, run_m: the roll's steps before, d_m); "range": (radio_x_m, radio_y_m,
-        #                       range_m, sigma_m); "step": (the step's share of the newest travel m, scale sigma)
-        self.data = data
-        self.sort_key = (t_s, _KIND_RANK[kind], data)
-
-
-class _State:
-    """The filter after an event, with the counters that depend on which measurements were used."""
-
-    __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
-                 "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps", "doubt",
-                 "pending", "agreeing", "reach", "tag_story")
-
-    def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
-                 consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0,
-                 doubt=None, pending=None, agreeing=0, reach=None, tag_story=None):
-        self.snap = snap
-        self.ips_used = ips_used
-        self.ips_rejected = ips_rejected
-        self.tags_used = tags_used
-        self.tags_rejected = tags_rejected
-        self.gated = gated             # anchors (fix s - odometer, m) of the current run of gated IPS fixes
-        self.relocations = relocations
-        self.consensus = consensus     # (low_m, high_m, anchor_m, sigma_m): where the agreeing gated fixes put the
-        #                                train, as offsets from the filter's position, and their anchor; or None
-        self.innovations = innovations  # along-track innovations (m) of the newest IPS fixes, gated or not
-        self.disagree = disagree       # (low_m, high_m): how far behind (<= 0) and ahead (>= 0) of the filter's
-        #                                position the IPS may put the train; None while they agree
-        self.disagreements = disagreements   # runs of disagreement begun
-        self.tag_offset = tag_offset   # where the newest gated balise read puts the train, less the filter's position
-        #                                (m); None while no read disagrees, or once the IPS has shown it wrong
-        self.speed_steps = speed_steps  # reported speeds that changed faster than the train can: the wheel slipped
-        self.doubt = doubt             # (low_m, high_m): where the train may be, behind (<= 0) and ahead (>= 0) of the
-        #                                filter's position, from before it was located afresh; None once a balise
-        #                                read has confirmed the position (keep_doubt), or while the placement awaits
-        #                                its second reference (`pending`)
-        self.pending = pending         # what placed the train, "ips" or "tag", while no second, independent reference
-        #                                has confirmed it (a balise; after a tag, a second tag or the IPS); None: both
-        self.agreeing = agreeing       # IPS fixes in a row the filter took since a tag placed the train
-        self.reach = reach             # (low_s_m, high_s_m, d_m, ref_d_m): where the head may be when the odometer
-        #                                read d_m, from the last balise (or placement, at odometer ref_d_m) on by the
-        #                                wheel alone, at the lowest and highest scale the filter allows: what no IPS
-        #                                bias can move (dead reckoning)
-        self.tag_story = tag_story     # where the newest balise read, gated, put the train less the filter's
-        #                                position (m); None once a read is taken, or when the IPS shows it wrong
-
-    def copy_with(self, snap):
-        return _State(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
-                      self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
-                      self.tag_offset, self.speed_steps, self.doubt, self.pending, self.agreeing, self.reach,
-                      self.tag_story)
 
 
 class UkfEstimator:
@@ -351,7 +219,7 @@ class UkfEstimator:
 
     def counters(self) -> dict:
         """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""
-        state = self._newest or _State(None)
+        state = self._newest or FilterState(None)
         return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
                 "disagreements": state.disagreements, "disagreeing": state.disagree is not None,
@@ -414,23 +282,23 @@ class UkfEstimator:
         self._board_duty_pct = duty_pct
         if self._first_odo_m is None:
             self._first_odo_m = odo_m
-        new = [_Event(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
+        new = [FilterEvent(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
         if rolled_m:
-            new.append(_Event(t_s, "roll", (rolled_m, run_m, odo_m - self._rolled_m)))
+            new.append(FilterEvent(t_s, "roll", (rolled_m, run_m, odo_m - self._rolled_m)))
         if step is not None:
-            new.append(_Event(t_s, "step", step))
+            new.append(FilterEvent(t_s, "step", step))
         for entry in report["tags"]:
             tag_s_m = self.balises.position_m(entry[0], entry[4] if len(entry) > 4 else None)
             if tag_s_m is None:
                 continue
             # read before the train first moved: it may have stood in the reader's field all along
             in_field = self._first_odo_m is None or entry[1] / 1000.0 <= self._first_odo_m
-            new.append(_Event(board_clock.board_s(entry[2]), "tag",
+            new.append(FilterEvent(board_clock.board_s(entry[2]), "tag",
                               (tag_s_m, entry[1] / 1000.0 - self._rolled_m, in_field, entry[3] / 1000.0)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
-            new.append(_Event(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
+            new.append(FilterEvent(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
         self._insert(new)
 
     def _least_speed_mps(self, v_mps: float) -> float:
@@ -531,7 +399,8 @@ class UkfEstimator:
     def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
         """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
         measured at board time `t_s` (s); applied in time order like every other measurement (cbtc.ranging.toa)."""
-        self._insert([_Event(t_s, "range", (float(radio_xy[0]), float(radio_xy[1]), float(range_m), float(sigma_m)))])
+        data = (float(radio_xy[0]), float(radio_xy[1]), float(range_m), float(sigma_m))
+        self._insert([FilterEvent(t_s, "range", data)])
 
     def _insert(self, new):
         keys = self._keys
@@ -851,9 +720,9 @@ class UkfEstimator:
             fused = self._with_declared(s_m, sigma_s_m)
             if fused is not None:   # a tag and the operator agree
                 s_m, sigma_s_m = fused
-                used = _State(None, tags_used=1)
+                used = FilterState(None, tags_used=1)
             else:
-                used = _State(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
+                used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
             used.reach = self._reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
         else:
             anchors = []
@@ -874,10 +743,10 @@ class UkfEstimator:
             low_m, high_m = (0.0, 0.0) if self._doubt_span is None else \
                 span_offsets_m(self.layout, self._doubt_span, s_m)
             if fused is not None:
-                used = _State(None, ips_used=self.params.locate_fixes,
+                used = FilterState(None, ips_used=self.params.locate_fixes,
                               doubt=None if self._doubt_span is None else (low_m, high_m))
             else:
-                used = _State(None, ips_used=self.params.locate_fixes,
+                used = FilterState(None, ips_used=self.params.locate_fixes,
                               doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
             used.reach = self._reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
         with_scale = self._scale_sigma0 > 0

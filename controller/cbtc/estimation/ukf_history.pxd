@@ -1,0 +1,13 @@
+# The compiled build's C types for the estimator's history (setup.py, tests/test_pxd.py): their attributes in slots
+
+cdef class FilterEvent:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object t_s, kind, data, sort_key
+
+cdef class FilterState:
+    cdef dict __dict__
+    cdef object __weakref__
+    cdef public object snap, ips_used, ips_rejected, tags_used, tags_rejected, gated
+    cdef public object relocations, consensus, innovations, disagree, disagreements, tag_offset
+    cdef public object speed_steps, doubt, pending, agreeing, reach, tag_story
