@@ -21,19 +21,17 @@ can tell which. Until they agree again the estimate covers both (`Estimate.ahead
 keeps its own position; a balise read that the filter gates but that agrees with the fixes moves the position there.
 """
 
-import statistics
 from bisect import bisect_right
 from math import hypot, isfinite, sqrt
 
 from numpy.linalg import LinAlgError
 
+from cbtc.estimation.balise_reads import BaliseReads
 from cbtc.estimation.estimate import Estimate, span_offsets_m
-from cbtc.estimation.fix_consensus import agreeing_anchor
+from cbtc.estimation.ips_agreement import IpsAgreement
 from cbtc.estimation.motor_gain import MotorGain
 from cbtc.estimation.speed_envelope import SpeedEnvelope
 from cbtc.estimation.track_ukf import (
-    K_HIGH,
-    K_LOW,
     D,
     K,
     S,
@@ -44,19 +42,14 @@ from cbtc.estimation.track_ukf import (
     tag_read_model,
 )
 from cbtc.estimation.ukf_history import FilterEvent, FilterState
-from cbtc.estimation.ukf_params import make_params, noise_model
+from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST, make_params, noise_model
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
 
-_WHEEL_LOWEST = 1.0 + K_LOW   # odometer m per true m: the least a wheel reads (and a command may state)
-_WHEEL_HIGHEST = 1.0 + K_HIGH  # ... and the most
 _ADHESION_MPS2 = 3.0   # no train stops faster than this (wheel adhesion; the board's _ADHESION_MMPS2)
-_SCALE_K_SIGMA = 3.0   # the scale's bounds there, in its sigmas
 _SPEED_LAG_S = 0.03    # a board's measured speed lags the train's at most this: half its window and a count or two
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
-_STORY_TOL_M = 0.1    # two gated balise reads in a row whose stories differ by no more (m) tell the same story
-_WORN_SHARE = 0.15    # ... that a wheel this far wrong (worn, dirty, slipping: of the travel) can tell
 _ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
 _MOVING_MPS = 0.05   # speeds from here up are steady enough for a step between two reports to tell of the wheel
 
@@ -69,6 +62,8 @@ class UkfEstimator:
         self.profile = profile
         self.params = make_params(params)
         self.noise = noise_model(profile, self.params)
+        self._ips = IpsAgreement(layout, profile, self.params)   # whether the IPS agrees with the filter
+        self._reads = BaliseReads(layout, self.noise, self.params)   # what a balise read tells against it
         self.localized = False
         self.balises = BaliseReader(layout)   # tag reads -> positions, from their telegrams or the layout
         self.late_measurements = 0   # arrived more than history_s after newer ones: dropped
@@ -192,15 +187,15 @@ class UkfEstimator:
         state = self._newest
         if state is not None and k_sigma > 0.0 and ((state.disagree is not None and state.disagree[1] > 0.0)
                                                     or (state.tag_offset is not None and state.tag_offset > 0.0)):
-            return _WHEEL_LOWEST   # the IPS or a balise puts the train ahead of its wheel: it may read short, by any
+            return WHEEL_LOWEST   # the IPS or a balise puts the train ahead of its wheel: it may read short, by any
             #                        amount
         if state is None or len(state.snap[1]) <= K:
-            return max(1.0 - k_sigma * self._scale_sigma0, _WHEEL_LOWEST)
+            return max(1.0 - k_sigma * self._scale_sigma0, WHEEL_LOWEST)
         _t, x, P = state.snap
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
         low = 1.0 + k_m - k_sigma * sqrt(max(P[K][K], 0.0))
-        return max(low, _WHEEL_LOWEST) if isfinite(low) else low
+        return max(low, WHEEL_LOWEST) if isfinite(low) else low
 
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
@@ -318,21 +313,21 @@ class UkfEstimator:
         least true speed that report's speed allows, braking at the adhesion limit. A count flagged `roll` within them
         was no roll: a train cannot turn back before it stops."""
         v_mps = self._least_speed_mps(self._board_v_mps)
-        low = self.odometer_per_m_low(_SCALE_K_SIGMA)
+        low = self.odometer_per_m_low(SCALE_K_SIGMA)
         if not (v_mps > 0.0 and isfinite(low)):
             return 0.0
-        return max(low, _WHEEL_LOWEST) * v_mps * v_mps / (2.0 * _ADHESION_MPS2)
+        return max(low, WHEEL_LOWEST) * v_mps * v_mps / (2.0 * _ADHESION_MPS2)
 
     def _odometer_per_m_high(self) -> float:
-        """An upper bound of the encoder's odometer metres per true metre (_SCALE_K_SIGMA above the scale learnt;
+        """An upper bound of the encoder's odometer metres per true metre (SCALE_K_SIGMA above the scale learnt;
         the most a wheel reads while unlocated, or when the IPS or a balise puts the train behind its wheel)."""
         state = self._newest
         if state is None or len(state.snap[1]) <= K or (state.disagree is not None and state.disagree[0] < 0.0) \
                 or (state.tag_offset is not None and state.tag_offset < 0.0):
-            return _WHEEL_HIGHEST
+            return WHEEL_HIGHEST
         _t, x, P = state.snap
-        high = 1.0 + float(x[K]) + _SCALE_K_SIGMA * sqrt(max(P[K][K], 0.0))
-        return min(high, _WHEEL_HIGHEST) if isfinite(high) else _WHEEL_HIGHEST
+        high = 1.0 + float(x[K]) + SCALE_K_SIGMA * sqrt(max(P[K][K], 0.0))
+        return min(high, WHEEL_HIGHEST) if isfinite(high) else WHEEL_HIGHEST
 
     def _speed_step(self, t_s, v_mps, duty_pct):
         """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report, or since the one
@@ -447,19 +442,19 @@ class UkfEstimator:
         f.predict_to(event.t_s)
         new = state.copy_with(None)
         if event.kind == "odo":
-            new.reach = self._reckon(f, state.reach, event.data[0])
+            new.reach = self._reads.reckon(f, state.reach, event.data[0], self._scale_sigma0)
             f.update_odometer(event.data[0])
         elif event.kind == "roll":
             # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
             step_m, run_m, d_m = event.data
-            new.reach = self._widen_reach(state.reach, step_m)
+            new.reach = self._reads.widen_reach(state.reach, step_m)
             f.widen_position(sqrt(step_m * (step_m + 2.0 * run_m)))
             f.hold_still(_ROLL_MPS, d_m)
         elif event.kind == "step":
             # the wheel's scale changed: re-opened, so the position widens with the travel and the IPS and balises
             # learn it again; the travel since the previous report is in doubt by the step's share
             new.speed_steps += 1
-            new.reach = self._widen_reach(state.reach, event.data[0])
+            new.reach = self._reads.widen_reach(state.reach, event.data[0])
             f.widen_position(event.data[0])
             f.reopen_scale(event.data[1])
         elif event.kind == "tag":
@@ -467,19 +462,19 @@ class UkfEstimator:
                 # a balise where the filter expects it: a second, independent reference to what placed the train
                 new.tags_used += 1
                 new.tag_offset = new.doubt = new.pending = new.tag_story = None
-                new.reach = self._reach_at_tag(f, *event.data)
-            elif state.consensus is not None and self._arbitrate(f, state.consensus, *event.data):
+                new.reach = self._reads.reach_at_tag(f, *event.data)
+            elif state.consensus is not None and self._reads.arbitrate(f, state.consensus, *event.data):
                 new.tags_used += 1
                 new.relocations += 1
                 new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
                 new.tag_offset = new.doubt = new.pending = new.tag_story = None
-                new.reach = self._reach_at_tag(f, *event.data)
-            elif state.pending is not None and not self._within_doubt(f, state.doubt, *event.data):
+                new.reach = self._reads.reach_at_tag(f, *event.data)
+            elif state.pending is not None and not self._reads.within_doubt(f, state.doubt, *event.data):
                 # a balise beyond the pending placement's own bound: nothing places the train now; it is located
                 # afresh (and every train held meanwhile), not re-placed at what may be another tag misread
                 self._filter_holds = None
                 return None
-            elif state.pending is not None or self._story_repeats(f, state.reach, state.tag_story,
+            elif state.pending is not None or self._reads.story_repeats(f, state.reach, state.tag_story,
                                                                         *event.data):
                 # the placement rests on one reference, and a balise says it is wrong; or a second balise in a row
                 # tells the same story of a filter gone astray (a wheel worn long, and no IPS): the train is placed
@@ -490,13 +485,13 @@ class UkfEstimator:
                     f.reopen_scale(3.0 * self.params.scale_sigma)
                 new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
                 new.tag_offset = new.tag_story = None
-                new.doubt = self._replace_at_tag(f, state.doubt, *event.data)
+                new.doubt = self._reads.replace_at_tag(f, state.doubt, *event.data)
                 new.pending, new.agreeing = "tag", 0
-                new.reach = self._reach_at_tag(f, *event.data)
+                new.reach = self._reads.reach_at_tag(f, *event.data)
             else:
                 # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
                 new.tags_rejected += 1
-                story_m, _var = self._read_story(f, *event.data)
+                story_m, _var = self._reads.read_story(f, *event.data)
                 new.tag_story = story_m
                 if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
                     new.tag_offset = story_m
@@ -523,11 +518,11 @@ class UkfEstimator:
                 new.agreeing = 0
                 new.ips_rejected += 1
                 new.gated = (state.gated + (fix_s_m - d_m,))[-self.params.relocate_after:]
-                new.consensus = self._consensus(s_m, d_m, new.gated) or state.consensus
-            new.disagree = self._disagreement(new.consensus, new.innovations)
-            if new.tag_offset is not None and self._ips_refutes(new.innovations, new.tag_offset):
+                new.consensus = self._ips.consensus(s_m, d_m, new.gated) or state.consensus
+            new.disagree = self._ips.disagreement(new.consensus, new.innovations)
+            if new.tag_offset is not None and self._ips.refutes(new.innovations, new.tag_offset):
                 new.tag_offset = None
-            if new.tag_story is not None and self._ips_refutes(new.innovations, new.tag_story):
+            if new.tag_story is not None and self._ips.refutes(new.innovations, new.tag_story):
                 new.tag_story = None
             if new.disagree is not None and state.disagree is None:
                 new.disagreements += 1
@@ -544,147 +539,6 @@ class UkfEstimator:
             if error > 3.0 * self.params.scale_sigma and f.cov[K][K] < (error / 3.0) ** 2:
                 f.reopen_scale(error / 3.0)
 
-    def _disagreement(self, consensus, innovations):
-        """(low_m, high_m) that the IPS may put the train behind or ahead of the filter's position: from the gated
-        fixes that agree, and from a bias of the newest fixes, gated or not (their median, beyond 4 sigma of a
-        median); None when they agree with it."""
-        low = high = 0.0
-        if consensus is not None:
-            low, high = min(0.0, consensus[0]), max(0.0, consensus[1])
-        bias = self._ips_bias(innovations)
-        if bias is not None and abs(bias[0]) > 4.0 * bias[1]:
-            bias_m, sigma_m = bias
-            low, high = min(low, bias_m - 3.0 * sigma_m), max(high, bias_m + 3.0 * sigma_m)
-        if low == high == 0.0:
-            return None
-        return low, high
-
-    def _ips_refutes(self, innovations, offset_m) -> bool:
-        """The newest IPS fixes agree with the filter (their median within 2 sigma of it) and not with a balise read
-        `offset_m` away (beyond 4 sigma): the read was wrong."""
-        bias = self._ips_bias(innovations)
-        if bias is None:
-            return False
-        bias_m, sigma_m = bias
-        return abs(bias_m) <= 2.0 * sigma_m and abs(bias_m - offset_m) > 4.0 * sigma_m
-
-    def _ips_bias(self, innovations):
-        """(median, its 1-sigma) of the newest IPS fixes' innovations (m, up to bias_fixes of them); None while fewer
-        than relocate_after."""
-        if len(innovations) < self.params.relocate_after:
-            return None
-        return (statistics.median(innovations),
-                1.25 * self.profile.ips_sigma_m / sqrt(len(innovations)))   # sigma of a median of normals
-
-    def _consensus(self, s_m, d_m, anchors_m):
-        """(low_m, high_m, anchor_m, sigma_m) where `locate_fixes` of the gated IPS `anchors_m` agree: the span of
-        their offsets from the filter's position `s_m` (odometer `d_m`), widened by three sigma of their consensus;
-        None when too few agree."""
-        placed = self._agreeing(anchors_m)
-        if placed is None:
-            return None
-        anchor_m, sigma_m = placed
-        ring_m = self.layout.loop_length_m
-        gate_m = 3.0 * sqrt(2.0) * self.profile.ips_sigma_m
-        offsets = [circular_offset_m(a + d_m, s_m, ring_m) for a in anchors_m
-                   if abs(circular_offset_m(a, anchor_m, ring_m)) <= gate_m]
-        return min(offsets) - 3.0 * sigma_m, max(offsets) + 3.0 * sigma_m, anchor_m, sigma_m
-
-    def _arbitrate(self, f, consensus, tag_s_m, d_m, in_field, span_s):
-        """A balise read the filter gated, while the IPS disagrees with it: when the read agrees with the IPS (within
-        three sigma of both), the wheel was wrong: the position restarts at the balise. True when it did."""
-        _low, _high, anchor_m, sigma_m = consensus
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-        read_s_m = tag_s_m - offset_m
-        tag_sigma_m = sqrt(var_m2)
-        ring_m = self.layout.loop_length_m
-        if abs(circular_offset_m(anchor_m + d_m, read_s_m, ring_m)) > 3.0 * hypot(sigma_m, tag_sigma_m):
-            return False
-        f.relocate(self.layout.wrap(read_s_m + float(f.mean[D]) - d_m), tag_sigma_m)
-        if f.n > K:   # the wheel was wrong: its scale is learnt afresh from the fixes that follow
-            f.reopen_scale(3.0 * self.params.scale_sigma)
-        return True
-
-    def _reckon(self, f, reach, d_m):
-        """`reach` carried to odometer `d_m` by the wheel alone, at the lowest and highest scale the filter (`f`)
-        allows (3 sigma, within the band a wheel can have)."""
-        if reach is None:
-            return None
-        low_s_m, high_s_m, d0_m, ref_d_m = reach
-        run_m = d_m - d0_m
-        if run_m == 0.0:
-            return reach
-        if f.n > K:
-            k, sd = float(f.mean[K]), sqrt(max(f.cov[K][K], 0.0))
-        else:
-            k, sd = 0.0, self._scale_sigma0
-        low = min(max(1.0 + k - _SCALE_K_SIGMA * sd, _WHEEL_LOWEST), _WHEEL_HIGHEST)
-        high = min(max(1.0 + k + _SCALE_K_SIGMA * sd, _WHEEL_LOWEST), _WHEEL_HIGHEST)
-        if run_m < 0.0:
-            low, high = high, low
-        wrap = self.layout.wrap
-        return wrap(low_s_m + run_m / high), wrap(high_s_m + run_m / low), d_m, ref_d_m
-
-    @staticmethod
-    def _widen_reach(reach, by_m):
-        """`reach` widened `by_m` either way (travel of unknown sign: a roll, a speed step's share)."""
-        if reach is None:
-            return None
-        return reach[0] - by_m, reach[1] + by_m, reach[2], reach[3]
-
-    def _reach_at_tag(self, f, tag_s_m, d_m, in_field, span_s):
-        """The reach a balise read gives: where the read puts the head, 3 sigma of the read (the tag's placement
-        as surveyed, `tag_sigma_m`, and the reader's field and poll) either way, at odometer `d_m`."""
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-        return self._reach_around(tag_s_m - offset_m, 3.0 * sqrt(var_m2), d_m)
-
-    def _read_story(self, f, tag_s_m, d_m, in_field, span_s):
-        """Where a balise read puts the head at the filter's time, as an offset from the filter's position (m, the
-        short way round), and the read's variance (m^2)."""
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-        here_m = tag_s_m - offset_m + float(f.mean[D]) - d_m
-        return circular_offset_m(here_m, float(f.mean[S]), self.layout.loop_length_m), var_m2
-
-    def _reach_around(self, s_m, half_m, d_m):
-        wrap = self.layout.wrap
-        return wrap(s_m - half_m), wrap(s_m + half_m), d_m, d_m
-
-    def _within_doubt(self, f, doubt, tag_s_m, d_m, in_field, span_s):
-        """True when a balise read puts the head within `doubt` (the pending placement's bound, as offsets from the
-        filter's position), widened by 3 sigma of the filter and of the read and the tag's bias."""
-        story_m, var_m2 = self._read_story(f, tag_s_m, d_m, in_field, span_s)
-        low_m, high_m = doubt if doubt is not None else (0.0, 0.0)
-        spread_m = 3.0 * (sqrt(max(f.cov[S][S], 0.0)) + sqrt(var_m2)) + self.params.tag_bias_m
-        return low_m - spread_m <= story_m <= high_m + spread_m
-
-    def _story_repeats(self, f, reach, story_m, tag_s_m, d_m, in_field, span_s):
-        """True when a balise read the filter gates tells the story the one before told (`story_m`, the newest gated
-        read's position less the filter's), to within _STORY_TOL_M or a quarter of it, the same way, and no further
-        off than a wheel _WORN_SHARE wrong could have taken the filter since its last reference (`reach`): two
-        balises in a row, the most accurate reference, agree with each other and not with the filter. Reads of other
-        tags (misplaced, swapped, misread) put the train at random places, most a tag spacing or more away: they do
-        not repeat."""
-        if story_m is None or reach is None:
-            return False
-        now_m, _var = self._read_story(f, tag_s_m, d_m, in_field, span_s)
-        worn_m = _WORN_SHARE * abs(d_m - reach[3]) + _STORY_TOL_M
-        return now_m * story_m > 0.0 and abs(now_m - story_m) <= max(_STORY_TOL_M, 0.25 * abs(story_m)) \
-            and abs(now_m) <= worn_m
-
-    def _replace_at_tag(self, f, doubt, tag_s_m, d_m, in_field, span_s):
-        """Restart the position at a balise read the filter gated and return the doubt (behind <= 0, ahead >= 0 of
-        the new position) that covers the position before it (3 sigma and its own doubt) and the tag's bias."""
-        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
-        old_s_m, spread_m = float(f.mean[S]), 3.0 * sqrt(max(f.cov[S][S], 0.0))
-        low_m, high_m = doubt if doubt is not None else (0.0, 0.0)
-        s_m = self.layout.wrap(tag_s_m - offset_m + float(f.mean[D]) - d_m)
-        f.relocate(s_m, sqrt(var_m2))
-        ring_m = self.layout.loop_length_m
-        behind_m, ahead_m = (circular_offset_m(self.layout.wrap(old_s_m + x), s_m, ring_m)
-                             for x in (low_m - spread_m, high_m + spread_m))
-        bias_m = self.params.tag_bias_m
-        return min(-bias_m, behind_m), max(bias_m, ahead_m)
-
     def _load(self, state):
         if self._filter is None:
             t_s, x, P = state.snap
@@ -692,15 +546,6 @@ class UkfEstimator:
         elif self._filter_holds is not state:
             self._filter.restore(state.snap)
         return self._filter
-
-    def _agreeing(self, anchors_m):
-        """(anchor_m, sigma_m) where at least `locate_fixes` of the IPS anchors agree, sigma twice the IPS sigma over
-        the root of their number; None when they do not."""
-        found = agreeing_anchor(anchors_m, self.profile.ips_sigma_m, self.params.locate_fixes,
-                                self.layout.loop_length_m)
-        if found is None:
-            return None
-        return found[0], 2.0 * self.profile.ips_sigma_m / sqrt(found[1])
 
     def _locate(self, event):
         """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
@@ -723,7 +568,7 @@ class UkfEstimator:
                 used = FilterState(None, tags_used=1)
             else:
                 used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
-            used.reach = self._reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
+            used.reach = self._reads.reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
         else:
             anchors = []
             for e in self._events:
@@ -731,7 +576,7 @@ class UkfEstimator:
                     anchors.append(self.layout.project(*e.data) - self._odometer_at(e.t_s)[0])
                 if e is event:
                     break
-            placed = self._agreeing(anchors[-(2 * self.params.locate_fixes - 1):])
+            placed = self._ips.agreeing(anchors[-(2 * self.params.locate_fixes - 1):])
             if placed is None:
                 return None
             s_m, sigma_s_m = placed[0] + d_m, placed[1]
@@ -748,7 +593,7 @@ class UkfEstimator:
             else:
                 used = FilterState(None, ips_used=self.params.locate_fixes,
                               doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
-            used.reach = self._reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
+            used.reach = self._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
         with_scale = self._scale_sigma0 > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
         top_mps = self._top_mps

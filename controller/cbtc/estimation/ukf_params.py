@@ -4,7 +4,11 @@ filter's noise made from both; docs/fusion.md's settings table lists them."""
 from dataclasses import dataclass, fields
 
 from cbtc.errors import ConfigError
-from cbtc.estimation.track_ukf import NoiseModel
+from cbtc.estimation.track_ukf import K_HIGH, K_LOW, NoiseModel
+
+WHEEL_LOWEST = 1.0 + K_LOW   # odometer m per true m: the least a wheel reads (and a command may state)
+WHEEL_HIGHEST = 1.0 + K_HIGH  # ... and the most
+SCALE_K_SIGMA = 3.0   # the scale's bounds within that band, in its sigmas
 
 
 @dataclass(frozen=True)
