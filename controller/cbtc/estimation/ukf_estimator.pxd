@@ -17,5 +17,7 @@ cdef class UkfEstimator:
 
     @cython.locals(f=TrackUkf, new=FilterState)
     cpdef _apply(self, FilterState state, FilterEvent event)
+    cpdef _take_tag(self, TrackUkf f, FilterState state, FilterState new, tuple data)
+    cpdef _take_ips(self, TrackUkf f, FilterState state, FilterState new, tuple data)
 
     cpdef on_report(self, dict report, board_clock)

@@ -282,6 +282,11 @@ class UkfEstimator:
             new.append(FilterEvent(t_s, "roll", (rolled_m, run_m, odo_m - self._rolled_m)))
         if step is not None:
             new.append(FilterEvent(t_s, "step", step))
+        self._sensor_events(report, board_clock, new)
+        self._insert(new)
+
+    def _sensor_events(self, report, board_clock, new):
+        """The report's balise reads and IPS fix, each an event at its own board time, appended to `new`."""
         for entry in report["tags"]:
             tag_s_m = self.balises.position_m(entry[0], entry[4] if len(entry) > 4 else None)
             if tag_s_m is None:
@@ -294,7 +299,6 @@ class UkfEstimator:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
             new.append(FilterEvent(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
-        self._insert(new)
 
     def _least_speed_mps(self, v_mps: float) -> float:
         """The least true speed a board's measured `v_mps` allows: the wheel reading as long as it may, the mean
@@ -458,78 +462,87 @@ class UkfEstimator:
             f.widen_position(event.data[0])
             f.reopen_scale(event.data[1])
         elif event.kind == "tag":
-            if f.update_tag(*event.data):
-                # a balise where the filter expects it: a second, independent reference to what placed the train
-                new.tags_used += 1
-                new.tag_offset = new.doubt = new.pending = new.tag_story = None
-                new.reach = self._reads.reach_at_tag(f, *event.data)
-            elif state.consensus is not None and self._reads.arbitrate(f, state.consensus, *event.data):
-                new.tags_used += 1
-                new.relocations += 1
-                new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
-                new.tag_offset = new.doubt = new.pending = new.tag_story = None
-                new.reach = self._reads.reach_at_tag(f, *event.data)
-            elif state.pending is not None and not self._reads.within_doubt(f, state.doubt, *event.data):
-                # a balise beyond the pending placement's own bound: nothing places the train now; it is located
-                # afresh (and every train held meanwhile), not re-placed at what may be another tag misread
+            if not self._take_tag(f, state, new, event.data):
                 self._filter_holds = None
                 return None
-            elif state.pending is not None or self._reads.story_repeats(f, state.reach, state.tag_story,
-                                                                        *event.data):
-                # the placement rests on one reference, and a balise says it is wrong; or a second balise in a row
-                # tells the same story of a filter gone astray (a wheel worn long, and no IPS): the train is placed
-                # at the balise, covering where it was before, until a second reference confirms one of them
-                new.tags_used += 1
-                new.relocations += 1
-                if state.pending is None and f.n > K:   # the wheel was wrong: its scale is learnt afresh
-                    f.reopen_scale(3.0 * self.params.scale_sigma)
-                new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
-                new.tag_offset = new.tag_story = None
-                new.doubt = self._reads.replace_at_tag(f, state.doubt, *event.data)
-                new.pending, new.agreeing = "tag", 0
-                new.reach = self._reads.reach_at_tag(f, *event.data)
-            else:
-                # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
-                new.tags_rejected += 1
-                story_m, _var = self._reads.read_story(f, *event.data)
-                new.tag_story = story_m
-                if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
-                    new.tag_offset = story_m
         elif event.kind == "range":
             f.update_range(*event.data)
         else:
-            fix_s_m = self.layout.project(*event.data)
-            s_m, d_m = float(f.mean[S]), float(f.mean[D])
-            new.innovations = (state.innovations + (circular_offset_m(fix_s_m, s_m, self.layout.loop_length_m),))[
-                -max(self.params.relocate_after, self.params.bias_fixes):]
-            # while the sensors disagree the IPS is as suspect as the wheel: a fix far from the wheel's position is
-            # not taken, however wide the position has grown (a roll, an open scale), or it would take the filter
-            # over to the fixes' story and out of the bounds that cover the wheel's
-            suspect = state.disagree is not None and abs(new.innovations[-1]) > 3.0 * self.profile.ips_sigma_m
-            if not suspect and f.update_ips(*event.data):
-                new.ips_used += 1
-                new.gated, new.consensus = (), None
-                if state.pending == "tag":
-                    # the IPS, independent of the tag, agrees with a tag placement: `locate_fixes` in a row confirm it
-                    new.agreeing += 1
-                    if new.agreeing >= self.params.locate_fixes:
-                        new.doubt = new.pending = None
-            else:
-                new.agreeing = 0
-                new.ips_rejected += 1
-                new.gated = (state.gated + (fix_s_m - d_m,))[-self.params.relocate_after:]
-                new.consensus = self._ips.consensus(s_m, d_m, new.gated) or state.consensus
-            new.disagree = self._ips.disagreement(new.consensus, new.innovations)
-            if new.tag_offset is not None and self._ips.refutes(new.innovations, new.tag_offset):
-                new.tag_offset = None
-            if new.tag_story is not None and self._ips.refutes(new.innovations, new.tag_story):
-                new.tag_story = None
-            if new.disagree is not None and state.disagree is None:
-                new.disagreements += 1
+            self._take_ips(f, state, new, event.data)
         self._keep_wheel_in_doubt(f)
         new.snap = f.snapshot()
         self._filter_holds = new
         return new
+
+    def _take_tag(self, f, state, new, data):
+        """A balise read into `new`, the state after it (`state` before); False when nothing places the train now."""
+        if f.update_tag(*data):
+            # a balise where the filter expects it: a second, independent reference to what placed the train
+            new.tags_used += 1
+            new.tag_offset = new.doubt = new.pending = new.tag_story = None
+            new.reach = self._reads.reach_at_tag(f, *data)
+        elif state.consensus is not None and self._reads.arbitrate(f, state.consensus, *data):
+            new.tags_used += 1
+            new.relocations += 1
+            new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
+            new.tag_offset = new.doubt = new.pending = new.tag_story = None
+            new.reach = self._reads.reach_at_tag(f, *data)
+        elif state.pending is not None and not self._reads.within_doubt(f, state.doubt, *data):
+            # a balise beyond the pending placement's own bound: nothing places the train now; it is located
+            # afresh (and every train held meanwhile), not re-placed at what may be another tag misread
+            return False
+        elif state.pending is not None or self._reads.story_repeats(f, state.reach, state.tag_story, *data):
+            # the placement rests on one reference, and a balise says it is wrong; or a second balise in a row
+            # tells the same story of a filter gone astray (a wheel worn long, and no IPS): the train is placed
+            # at the balise, covering where it was before, until a second reference confirms one of them
+            new.tags_used += 1
+            new.relocations += 1
+            if state.pending is None and f.n > K:   # the wheel was wrong: its scale is learnt afresh
+                f.reopen_scale(3.0 * self.params.scale_sigma)
+            new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
+            new.tag_offset = new.tag_story = None
+            new.doubt = self._reads.replace_at_tag(f, state.doubt, *data)
+            new.pending, new.agreeing = "tag", 0
+            new.reach = self._reads.reach_at_tag(f, *data)
+        else:
+            # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
+            new.tags_rejected += 1
+            story_m, _var = self._reads.read_story(f, *data)
+            new.tag_story = story_m
+            if abs(story_m) <= _SLIP_STORY_M:   # further off, it is another tag (misplaced or swapped), not slip
+                new.tag_offset = story_m
+        return True
+
+    def _take_ips(self, f, state, new, data):
+        """An IPS fix (x_m, y_m) into `new`, the state after it (`state` before)."""
+        fix_s_m = self.layout.project(*data)
+        s_m, d_m = float(f.mean[S]), float(f.mean[D])
+        new.innovations = (state.innovations + (circular_offset_m(fix_s_m, s_m, self.layout.loop_length_m),))[
+            -max(self.params.relocate_after, self.params.bias_fixes):]
+        # while the sensors disagree the IPS is as suspect as the wheel: a fix far from the wheel's position is
+        # not taken, however wide the position has grown (a roll, an open scale), or it would take the filter
+        # over to the fixes' story and out of the bounds that cover the wheel's
+        suspect = state.disagree is not None and abs(new.innovations[-1]) > 3.0 * self.profile.ips_sigma_m
+        if not suspect and f.update_ips(*data):
+            new.ips_used += 1
+            new.gated, new.consensus = (), None
+            if state.pending == "tag":
+                # the IPS, independent of the tag, agrees with a tag placement: `locate_fixes` in a row confirm it
+                new.agreeing += 1
+                if new.agreeing >= self.params.locate_fixes:
+                    new.doubt = new.pending = None
+        else:
+            new.agreeing = 0
+            new.ips_rejected += 1
+            new.gated = (state.gated + (fix_s_m - d_m,))[-self.params.relocate_after:]
+            new.consensus = self._ips.consensus(s_m, d_m, new.gated) or state.consensus
+        new.disagree = self._ips.disagreement(new.consensus, new.innovations)
+        if new.tag_offset is not None and self._ips.refutes(new.innovations, new.tag_offset):
+            new.tag_offset = None
+        if new.tag_story is not None and self._ips.refutes(new.innovations, new.tag_story):
+            new.tag_story = None
+        if new.disagree is not None and state.disagree is None:
+            new.disagreements += 1
 
     def _keep_wheel_in_doubt(self, f):
         """A scale learnt beyond three prior sigmas is a wheel that slips or spins, which stops when it will: the

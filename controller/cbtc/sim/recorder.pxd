@@ -17,6 +17,8 @@ cdef class Recorder:
 
     @cython.locals(train=VirtualTrain)
     cpdef sample(self, now_s)
+    cpdef _gap_to_ahead(self, i, heads, tails, ahead, everyone, moved, first)
+    cpdef _estimate_error(self, i, VirtualTrain train, now_s, head_s_m)
 
     @cython.locals(obu=OnboardUnit)
     cpdef _granted(self, i, VirtualTrain train, now_s, heads, tails, ahead, everyone)

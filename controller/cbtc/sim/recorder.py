@@ -150,21 +150,7 @@ class Recorder:
             window.append((now_s, travelled_m))
             while len(window) > 1 and now_s - window[1][0] >= STRANDED_S:
                 window.popleft()   # keeps the newest sample at least STRANDED_S old
-            gap_m = None
-            if i in ahead:
-                j = ahead[i]
-                tail_s = tails[j]
-                inside = head_inside(layout, heads[i], tail_s, everyone[j].length_m)
-                if inside and not self._colliding[i] and not first:
-                    self.collisions[i] += 1   # a collision whoever moved
-                    if not moved:
-                        self.rolled_onto[i] += 1
-                self._colliding[i] = inside
-                gap_m = -layout.ahead_m(tail_s, heads[i]) if inside else layout.ahead_m(heads[i], tail_s)
-                stats = self._gap[i]
-                stats[0] += 1
-                stats[1] += gap_m
-                stats[2] = min(stats[2], gap_m)
+            gap_m = self._gap_to_ahead(i, heads, tails, ahead, everyone, moved, first) if i in ahead else None
             safe_m = zc.authority_m(train.train_id)
             constrained = safe_m is not None and safe_m < self._reach_m[i]
             self._ever_constrained[i] = self._ever_constrained[i] or constrained
@@ -178,32 +164,60 @@ class Recorder:
                 else:
                     self.rolled_onto[i] += 1
             self._overrun[i] = over
-            est = est_s_m = None
-            if keep:   # its sigma is kept too
-                est = zc.estimate_at(train.train_id, now_s)
-                est_s_m = None if est is None else est.s_m
-            else:
-                est_s_m = zc.estimate_at(train.train_id, now_s, position_only=True)
-            if est_s_m is not None and est_s_m == est_s_m:
-                err_m = circular_offset_m(est_s_m, heads[i], layout.loop_length_m)
-                stats = self._error[i]
-                stats[0] += 1
-                stats[1] += err_m * err_m
-                stats[2] = max(stats[2], abs(err_m))
+            est = self._estimate_error(i, train, now_s, heads[i])
             if keep:
-                samples = self._samples
-                samples["travelled_m"][i].append(travelled_m)
-                samples["head_s_m"][i].append(heads[i])
-                samples["v_mps"][i].append(train.v_mps)
-                if gap_m is not None:
-                    samples["gap_m"][i].append(gap_m)
-                samples["constrained"][i].append(constrained)
-                if gap_m is not None and constrained:
-                    samples["following_gap_m"][i].append(gap_m)
-                samples["est_s_m"][i].append(nan if est is None else est.s_m)
-                samples["est_sigma_m"][i].append(nan if est is None else est.sigma_s_m)
+                self._keep(i, train, travelled_m, heads[i], gap_m, constrained, est)
         if any_moving:
             self._moving_last_s = now_s
+
+    def _gap_to_ahead(self, i, heads, tails, ahead, everyone, moved, first):
+        """Train i's gap (m) to the tail of the train ahead in truth (negative: inside it), counting a collision when
+        its head has entered that train since the last sample."""
+        layout = self.layout
+        j = ahead[i]
+        tail_s = tails[j]
+        inside = head_inside(layout, heads[i], tail_s, everyone[j].length_m)
+        if inside and not self._colliding[i] and not first:
+            self.collisions[i] += 1   # a collision whoever moved
+            if not moved:
+                self.rolled_onto[i] += 1
+        self._colliding[i] = inside
+        gap_m = -layout.ahead_m(tail_s, heads[i]) if inside else layout.ahead_m(heads[i], tail_s)
+        stats = self._gap[i]
+        stats[0] += 1
+        stats[1] += gap_m
+        stats[2] = min(stats[2], gap_m)
+        return gap_m
+
+    def _estimate_error(self, i, train, now_s, head_s_m):
+        """The zone's estimate of train i against its true head; the Estimate when samples are kept (else None)."""
+        zc = self.sim.zc
+        est = None
+        if self.keep_samples:   # its sigma is kept too
+            est = zc.estimate_at(train.train_id, now_s)
+            est_s_m = None if est is None else est.s_m
+        else:
+            est_s_m = zc.estimate_at(train.train_id, now_s, position_only=True)
+        if est_s_m is not None and est_s_m == est_s_m:
+            err_m = circular_offset_m(est_s_m, head_s_m, self.layout.loop_length_m)
+            stats = self._error[i]
+            stats[0] += 1
+            stats[1] += err_m * err_m
+            stats[2] = max(stats[2], abs(err_m))
+        return est
+
+    def _keep(self, i, train, travelled_m, head_s_m, gap_m, constrained, est):
+        samples = self._samples
+        samples["travelled_m"][i].append(travelled_m)
+        samples["head_s_m"][i].append(head_s_m)
+        samples["v_mps"][i].append(train.v_mps)
+        if gap_m is not None:
+            samples["gap_m"][i].append(gap_m)
+        samples["constrained"][i].append(constrained)
+        if gap_m is not None and constrained:
+            samples["following_gap_m"][i].append(gap_m)
+        samples["est_s_m"][i].append(nan if est is None else est.s_m)
+        samples["est_sigma_m"][i].append(nan if est is None else est.sigma_s_m)
 
     def _granted(self, i, train, now_s, heads, tails, ahead, everyone):
         """True room ahead of train i now, and how far the authority its board holds reaches beyond it."""
