@@ -20,7 +20,8 @@ from setuptools.command.build_ext import build_ext
 
 COMPILED = (
     "cbtc/scheduler.py",
-    "cbtc/estimation/track_ukf.py", "cbtc/estimation/ukf_estimator.py", "cbtc/estimation/ukf_history.py",
+    "cbtc/estimation/track_ukf.py", "cbtc/estimation/ukf_model.py", "cbtc/estimation/ukf_estimator.py",
+    "cbtc/estimation/ukf_history.py",
     "cbtc/estimation/ips_agreement.py", "cbtc/estimation/balise_reads.py", "cbtc/estimation/speed_envelope.py",
     "cbtc/estimation/motor_gain.py", "cbtc/estimation/estimate.py", "cbtc/estimation/fix_consensus.py",
     "cbtc/zone/controller.py", "cbtc/zone/train_state.py", "cbtc/zone/plausibility.py", "cbtc/zone/boots.py",

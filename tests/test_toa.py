@@ -38,7 +38,8 @@ def test_measurement_model_on_a_layout():
 
 
 def test_ukf_range_update_pulls_the_estimate_toward_truth():
-    from cbtc.estimation.track_ukf import NoiseModel, TrackUkf
+    from cbtc.estimation.track_ukf import TrackUkf
+    from cbtc.estimation.ukf_model import NoiseModel
     layout = load_layout("straight_test")
     noise = NoiseModel(0.02, 1e-6, 1e-6, 1e-6, 0.05 ** 2, 1e-6, 0.015, 0.999)
     f = TrackUkf(layout, noise, [1.0, 0.0, 0.0], np.diag([0.1 ** 2, 0.01, 1e-6]), 0.0)

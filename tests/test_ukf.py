@@ -16,15 +16,15 @@ from cbtc.cli import main
 from cbtc.errors import ConfigError
 from cbtc.estimation import ukf_estimator, ukf_params
 from cbtc.estimation.estimate import BoardClock
-from cbtc.estimation.track_ukf import (
+from cbtc.estimation.track_ukf import TrackUkf
+from cbtc.estimation.ukf_estimator import UkfEstimator
+from cbtc.estimation.ukf_model import (
     NoiseModel,
-    TrackUkf,
     along_track_residual,
     initial_covariance,
     process_noise,
     tag_read_model,
 )
-from cbtc.estimation.ukf_estimator import UkfEstimator
 from cbtc.firmware import obu
 from cbtc.layout_files import load_layout
 from cbtc.railway import balise
@@ -740,7 +740,7 @@ def test_filter_steps_equal_filterpy_reference(layout_name):
 
 
 def test_gates_are_chi_square_quantiles():
-    from cbtc.estimation.track_ukf import gate_sigmas
+    from cbtc.estimation.ukf_model import gate_sigmas
 
     for p in (0.9, 0.99, 0.999, 0.9999):
         one, two = gate_sigmas(p)

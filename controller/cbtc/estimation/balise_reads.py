@@ -4,7 +4,7 @@ disagreement (arbitrate), repeats the read before it, or re-places the train."""
 
 from math import hypot, sqrt
 
-from cbtc.estimation.track_ukf import D, K, S, V, tag_read_model
+from cbtc.estimation.ukf_model import D, K, S, V, tag_read_model
 from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST
 from cbtc.railway.geometry import circular_offset_m
 

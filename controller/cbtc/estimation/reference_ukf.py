@@ -4,12 +4,12 @@
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from cbtc.estimation.track_ukf import (
-    _ALPHA,
-    _BETA,
-    _KAPPA,
+from cbtc.estimation.ukf_model import (
     K_HIGH,
     K_LOW,
+    UT_ALPHA,
+    UT_BETA,
+    UT_KAPPA,
     K,
     NoiseModel,
     S,
@@ -35,7 +35,7 @@ class ReferenceUkf:
         self.layout = layout
         self.noise = noise
         self.ukf = UnscentedKalmanFilter(dim_x=n, dim_z=1, dt=0.0, hx=hx_odometer, fx=fx,
-                                         points=MerweScaledSigmaPoints(n, _ALPHA, _BETA, _KAPPA))
+                                         points=MerweScaledSigmaPoints(n, UT_ALPHA, UT_BETA, UT_KAPPA))
         self.ukf.x = np.array(x0, dtype=float)
         self.ukf.P = np.array(P0, dtype=float)
         self.t_s = float(t_s)

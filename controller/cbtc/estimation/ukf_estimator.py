@@ -31,17 +31,9 @@ from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.ips_agreement import IpsAgreement
 from cbtc.estimation.motor_gain import MotorGain
 from cbtc.estimation.speed_envelope import SpeedEnvelope
-from cbtc.estimation.track_ukf import (
-    D,
-    K,
-    S,
-    TrackUkf,
-    V,
-    cholesky_upper,
-    initial_covariance,
-    tag_read_model,
-)
+from cbtc.estimation.track_ukf import TrackUkf, cholesky_upper
 from cbtc.estimation.ukf_history import FilterEvent, FilterState
+from cbtc.estimation.ukf_model import D, K, S, V, initial_covariance, tag_read_model
 from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST, make_params, noise_model
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m

@@ -4,7 +4,7 @@ filter's noise made from both; docs/fusion.md's settings table lists them."""
 from dataclasses import dataclass, fields
 
 from cbtc.errors import ConfigError
-from cbtc.estimation.track_ukf import K_HIGH, K_LOW, NoiseModel
+from cbtc.estimation.ukf_model import K_HIGH, K_LOW, NoiseModel
 
 WHEEL_LOWEST = 1.0 + K_LOW   # odometer m per true m: the least a wheel reads (and a command may state)
 WHEEL_HIGHEST = 1.0 + K_HIGH  # ... and the most

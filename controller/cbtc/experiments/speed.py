@@ -105,7 +105,8 @@ def fusion_speed(n_trains: int = 50, steps: int = 40, seed: int = 0) -> dict:
     import numpy as np
 
     from cbtc.estimation.reference_ukf import ReferenceUkf
-    from cbtc.estimation.track_ukf import NoiseModel, TrackUkf
+    from cbtc.estimation.track_ukf import TrackUkf
+    from cbtc.estimation.ukf_model import NoiseModel
     from cbtc.layout_files import load_layout
 
     layout = load_layout("lego_long_oval")
