@@ -14,7 +14,7 @@ from scipy.stats import chi2
 
 from cbtc.cli import main
 from cbtc.errors import ConfigError
-from cbtc.estimation import ukf_estimator, ukf_params
+from cbtc.estimation import ukf_params, wheel_watch
 from cbtc.estimation.estimate import BoardClock
 from cbtc.estimation.track_ukf import TrackUkf
 from cbtc.estimation.ukf_estimator import UkfEstimator
@@ -645,7 +645,7 @@ def test_counts_flagged_roll_that_a_train_braking_from_speed_surely_made_forward
 
 
 def test_the_zone_bounds_braking_by_the_boards_adhesion_limit():
-    assert ukf_estimator._ADHESION_MPS2 * 1000 == obu._ADHESION_MMPS2
+    assert wheel_watch.ADHESION_MPS2 * 1000 == obu._ADHESION_MMPS2
 
 
 def test_a_train_located_after_an_encoder_fault_starts_with_its_scale_open(loop):

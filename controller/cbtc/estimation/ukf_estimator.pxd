@@ -11,9 +11,8 @@ cdef class UkfEstimator:
     cdef object __weakref__
     cdef public object layout, profile, params, noise, localized, balises
     cdef public object late_measurements, _clock, _events, _keys, _estimate_memo, _states
-    cdef public object _base, _doubt_span, _declared, _trimmed, _filter, _filter_holds, _board_odo_m
-    cdef public object _first_odo_m, _board_t_s, _top_mps, _rolled_m, _roll_run_m, _board_v_mps
-    cdef public object _board_duty_pct, _board_before, _envelope, _motor, speed_drifts, _scale_sigma0, _ips, _reads
+    cdef public object _base, _doubt_span, _declared, _trimmed, _filter, _filter_holds
+    cdef public object _wheel, _scale_sigma0, _ips, _reads
 
     @cython.locals(f=TrackUkf, new=FilterState)
     cpdef _apply(self, FilterState state, FilterEvent event)

@@ -29,21 +29,17 @@ from numpy.linalg import LinAlgError
 from cbtc.estimation.balise_reads import BaliseReads
 from cbtc.estimation.estimate import Estimate, span_offsets_m
 from cbtc.estimation.ips_agreement import IpsAgreement
-from cbtc.estimation.motor_gain import MotorGain
-from cbtc.estimation.speed_envelope import SpeedEnvelope
 from cbtc.estimation.track_ukf import TrackUkf, cholesky_upper
 from cbtc.estimation.ukf_history import FilterEvent, FilterState
 from cbtc.estimation.ukf_model import D, K, S, V, initial_covariance, tag_read_model
 from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST, make_params, noise_model
+from cbtc.estimation.wheel_watch import WheelWatch
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m
 from cbtc.railway.ips_frame import ips_to_track
 
-_ADHESION_MPS2 = 3.0   # no train stops faster than this (wheel adhesion; the board's _ADHESION_MMPS2)
-_SPEED_LAG_S = 0.03    # a board's measured speed lags the train's at most this: half its window and a count or two
 _SLIP_STORY_M = 0.3   # a gated balise read this close (m) may tell of a wheel that slipped or spun since the last one
 _ROLL_MPS = 0.05     # a train braked to a stand rolls no faster than this (m/s, 1-sigma)
-_MOVING_MPS = 0.05   # speeds from here up are steady enough for a step between two reports to tell of the wheel
 
 
 class UkfEstimator:
@@ -70,19 +66,7 @@ class UkfEstimator:
         self._trimmed = False        # once measurements have been forgotten, older ones cannot be placed
         self._filter = None          # the TrackUkf the states are replayed on
         self._filter_holds = None    # the state whose snapshot _filter holds as it stands (no restore needed)
-        self._board_odo_m = None     # the newest report's odometer, as the board counts it
-        self._first_odo_m = None     # the first report's: tag reads at it may come from a train standing on the tag
-        self._board_t_s = None       # the newest report's board time (s)
-        self._top_mps = 1.5 * profile.v_noload_mps   # no train runs half again faster than its motor drives it
-        self._rolled_m = 0.0         # the steps it counted while rolling, left out of the odometer the filter sees
-        self._roll_run_m = 0.0       # ... of the current roll, report after report
-        self._board_v_mps = None     # the newest report's speed
-        self._board_duty_pct = 0     # ... and the duty it was driven at (0 unless in mode run)
-        self._board_before = None    # (t_s, v_mps, duty_pct) of the report before it, while no step lies between
-        self._envelope = SpeedEnvelope(profile, self.params.motor_tol, self.params.step_window_s)
-        self._motor = MotorGain(profile, self.params.motor_tol, self.params.motor_learnt_tol,
-                                self.params.motor_learn_s, self.params.motor_needed_s)
-        self.speed_drifts = 0        # times reported speeds left the speed envelope (a wheel taken to spin or slide)
+        self._wheel = WheelWatch(profile, self.params)   # what the board's reports say of its wheel
         self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
 
     def keep_doubt(self, low_s_m: float, high_s_m: float) -> None:
@@ -210,8 +194,8 @@ class UkfEstimator:
         return {"ips_used": state.ips_used, "ips_rejected": state.ips_rejected, "tags_used": state.tags_used,
                 "tags_rejected": state.tags_rejected, "relocations": state.relocations,
                 "disagreements": state.disagreements, "disagreeing": state.disagree is not None,
-                "speed_steps": state.speed_steps, "speed_drifts": self.speed_drifts,
-                "motor_gain": round(self._motor.gain, 4), "motor_learnt_s": round(self._motor.learnt_s, 1),
+                "speed_steps": state.speed_steps, "speed_drifts": self._wheel.speed_drifts,
+                "motor_gain": round(self._wheel.motor.gain, 4), "motor_learnt_s": round(self._wheel.motor.learnt_s, 1),
                 "unknown_tags": self.unknown_tags, "late_measurements": self.late_measurements,
                 **{"balise_" + k: v for k, v in self.balises.counts.items() if k != "unknown"}}
 
@@ -221,57 +205,10 @@ class UkfEstimator:
         """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
         self._clock = board_clock
         t_s = board_clock.board_s(report["t_ms"])   # the board's time line, unwrapped
-        # a step the board counted while braked to a standstill (`roll`) has no sign: it is taken out of the odometer
-        # the filter sees (no travel, nothing for the scale to learn) and widens the position by its length instead;
-        # the part a train braking from speed surely made forward stays travel (_may_have_turned, _surely_forward_m)
-        odo_m, v_mps = report["odo_mm"] / 1000.0, report["v_mmps"] / 1000.0
-        if v_mps > self._top_mps or v_mps < -self._top_mps:   # faster than the motor drives: a burst or a jump
-            v_mps = self._top_mps if v_mps > 0.0 else -self._top_mps
-        rolled_m, run_m, burst = 0.0, self._roll_run_m, False
-        if "roll" in report.get("flt", ()) and self._board_odo_m is not None and self._may_have_turned(t_s, v_mps):
-            rolled_m = max(0.0, odo_m - self._board_odo_m - self._surely_forward_m())
+        d_m, v_mps, rolled_m, run_m, step = self._wheel.take(report, t_s, self)
+        new = [FilterEvent(t_s, "odo", (d_m, v_mps))]
         if rolled_m:
-            self._rolled_m += rolled_m
-            self._roll_run_m += rolled_m
-            v_mps = 0.0
-        else:
-            self._roll_run_m = 0.0
-            if self._board_odo_m is not None:
-                # counts beyond what the motor can drive since the previous report (a count that caught up after
-                # sticking, a burst) are not travel: taken out like a roll, and the position widened by them
-                reach_m = self._top_mps * max(0.0, t_s - self._board_t_s) + 0.01
-                excess_m = odo_m - self._board_odo_m - reach_m
-                if excess_m > 0.0:
-                    rolled_m, run_m, burst = excess_m, 0.0, True
-                    self._rolled_m += excess_m
-                    v_mps = min(v_mps, self._top_mps)
-        # the duty the train was driven at throughout the interval: none when the board braked or drove at zero duty
-        # at some pass since its last report (`undriven`), whatever it drives at now
-        # (`hold`: the board drove it only to hold a roll back, not at the speed loop's duty)
-        flt = report.get("flt", ())
-        driven = report.get("mode") == "run" and "undriven" not in flt and "hold" not in flt
-        duty_pct = report.get("duty", 0) if driven else 0
-        step = self._speed_step(t_s, v_mps, duty_pct) if not rolled_m else None
-        if rolled_m or step is not None:
-            self._envelope.reset()
-        else:
-            step = self._drifted(t_s, v_mps, duty_pct if "mode" in report else None)
-        if burst or step is not None:
-            self._motor.reset()   # the speeds it learnt from may hold some of the wheel's spin or slide
-        elif rolled_m:
-            # counts while braked to a stand tell nothing of the motor, nor of the wheel before: the window ends there
-            self._motor.observe(t_s, 0.0, 0, False)
-        else:
-            self._motor.observe(t_s, v_mps / (1.0 + (self.scale_error or 0.0)), duty_pct, self._scale_settled())
-        self._board_before = None if rolled_m or step is not None or self._board_t_s is None else (
-            self._board_t_s, self._board_v_mps, self._board_duty_pct)
-        self._board_odo_m, self._board_t_s, self._board_v_mps = odo_m, t_s, v_mps
-        self._board_duty_pct = duty_pct
-        if self._first_odo_m is None:
-            self._first_odo_m = odo_m
-        new = [FilterEvent(t_s, "odo", (odo_m - self._rolled_m, v_mps))]
-        if rolled_m:
-            new.append(FilterEvent(t_s, "roll", (rolled_m, run_m, odo_m - self._rolled_m)))
+            new.append(FilterEvent(t_s, "roll", (rolled_m, run_m, d_m)))
         if step is not None:
             new.append(FilterEvent(t_s, "step", step))
         self._sensor_events(report, board_clock, new)
@@ -284,37 +221,15 @@ class UkfEstimator:
             if tag_s_m is None:
                 continue
             # read before the train first moved: it may have stood in the reader's field all along
-            in_field = self._first_odo_m is None or entry[1] / 1000.0 <= self._first_odo_m
+            in_field = self._wheel.first_odo_m is None or entry[1] / 1000.0 <= self._wheel.first_odo_m
             new.append(FilterEvent(board_clock.board_s(entry[2]), "tag",
-                              (tag_s_m, entry[1] / 1000.0 - self._rolled_m, in_field, entry[3] / 1000.0)))
+                              (tag_s_m, entry[1] / 1000.0 - self._wheel.rolled_m, in_field, entry[3] / 1000.0)))
         if report["ips"] is not None:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
             new.append(FilterEvent(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
 
-    def _least_speed_mps(self, v_mps: float) -> float:
-        """The least true speed a board's measured `v_mps` allows: the wheel reading as long as it may, the mean
-        lagging the train by _SPEED_LAG_S at the adhesion limit."""
-        return max(0.0, v_mps / self._odometer_per_m_high() - _ADHESION_MPS2 * _SPEED_LAG_S) if v_mps else 0.0
-
-    def _may_have_turned(self, t_s: float, v_mps: float) -> bool:
-        """False when the train, going forward at the newest report (driven, or taken as going on), cannot have
-        turned back by `t_s`, when the board measures `v_mps` (no sign): its speed cannot change by the two speeds'
-        sum faster than the adhesion limit allows."""
-        v0_mps = self._least_speed_mps(self._board_v_mps)
-        return v0_mps <= 0.0 or v0_mps + self._least_speed_mps(v_mps) <= _ADHESION_MPS2 * (t_s - self._board_t_s)
-
-    def _surely_forward_m(self) -> float:
-        """Odometer metres the train surely went on forward after the newest report, whatever it met since: from the
-        least true speed that report's speed allows, braking at the adhesion limit. A count flagged `roll` within them
-        was no roll: a train cannot turn back before it stops."""
-        v_mps = self._least_speed_mps(self._board_v_mps)
-        low = self.odometer_per_m_low(SCALE_K_SIGMA)
-        if not (v_mps > 0.0 and isfinite(low)):
-            return 0.0
-        return max(low, WHEEL_LOWEST) * v_mps * v_mps / (2.0 * _ADHESION_MPS2)
-
-    def _odometer_per_m_high(self) -> float:
+    def odometer_per_m_high(self) -> float:
         """An upper bound of the encoder's odometer metres per true metre (SCALE_K_SIGMA above the scale learnt;
         the most a wheel reads while unlocated, or when the IPS or a balise puts the train behind its wheel)."""
         state = self._newest
@@ -325,53 +240,7 @@ class UkfEstimator:
         high = 1.0 + float(x[K]) + SCALE_K_SIGMA * sqrt(max(P[K][K], 0.0))
         return min(high, WHEEL_HIGHEST) if isfinite(high) else WHEEL_HIGHEST
 
-    def _speed_step(self, t_s, v_mps, duty_pct):
-        """(travel in doubt m, scale 1-sigma) when the speed measured since the previous report, or since the one
-        before it, changed by more than traction or the brake can change a train's speed (plus `step_tol_mps`): the
-        wheel began or stopped slipping or spinning, so the encoder's scale is unknown again. A step that begins
-        between two reports shows half in each (and the speed loop makes up part of it), so the two intervals are
-        judged together too. None when it did not, or either speed is low."""
-        found = self._step_over(self._board_t_s, self._board_v_mps, self._board_duty_pct, t_s, v_mps, duty_pct)
-        if found is None and self._board_before is not None:
-            t0_s, v0_mps, d0_pct = self._board_before
-            found = self._step_over(t0_s, v0_mps, min(d0_pct, self._board_duty_pct), t_s, v_mps, duty_pct)
-        return found
-
-    def _step_over(self, t0_s, v0_mps, d0_pct, t_s, v_mps, duty_pct):
-        """The step from speed `v0_mps` at `t0_s` to `v_mps` at `t_s` (None: none): a train driven throughout (mode
-        run, duty > 0 at both ends, no `undriven` pass between) slows no faster than its motor's drag at the lower
-        duty and friction allow; otherwise as fast as the emergency brake."""
-        if v0_mps is None or min(v0_mps, v_mps) < _MOVING_MPS or t_s <= t0_s:
-            return None
-        dt_s = t_s - t0_s
-        p = self.profile
-        fall_mps2 = p.beta_e_mps2
-        driven_pct = min(duty_pct, d0_pct)
-        if driven_pct > 0:
-            drag_mps2 = max(0.0, (v0_mps - driven_pct / 100.0 * p.v_noload_mps) / p.motor_tau_s)
-            fall_mps2 = min(fall_mps2, drag_mps2 + p.friction_mps2)
-        excess_mps = max(v_mps - v0_mps - p.accel_max_mps2 * dt_s, v0_mps - v_mps - fall_mps2 * dt_s)
-        if excess_mps <= self.params.step_tol_mps:
-            return None
-        return excess_mps * dt_s, self.params.step_scale_sigma
-
-    def _drifted(self, t_s, v_mps, duty_pct):
-        """(travel in doubt m, scale 1-sigma) when the reported speeds, read with the scale learnt, left what the
-        motor could give the train at its duties (None: not reported) over the last `step_window_s` by more than
-        `drift_tol_mps` plus `drift_tol_share` of the speed (cbtc.estimation.speed_envelope): a wheel that began to
-        spin or slide gradually. None while they did not."""
-        scale = self.scale_error or 0.0
-        self._envelope.set_motor(self._motor.gain, self._motor.tol)
-        found = self._envelope.observe(t_s, v_mps / (1.0 + scale), duty_pct)
-        if found is None or found[0] <= self.params.drift_tol_mps + self.params.drift_tol_share * v_mps \
-                or self._scale_open():
-            return None
-        self.speed_drifts += 1
-        self._envelope.reset()
-        excess_mps, over_s = found
-        return excess_mps * over_s, self.params.step_scale_sigma
-
-    def _scale_settled(self) -> bool:
+    def scale_settled(self) -> bool:
         """The wheel's scale is learnt to a quarter of the motor's learnt band, and nothing disagrees with the
         wheel: the speeds it reads tell of the motor."""
         state = self._newest
@@ -380,7 +249,7 @@ class UkfEstimator:
             return False
         return float(state.snap[2][K][K]) <= (0.25 * self.params.motor_learnt_tol) ** 2
 
-    def _scale_open(self) -> bool:
+    def scale_open(self) -> bool:
         """The scale is still as open as a step left it (half its 1-sigma or more): a wheel already in doubt."""
         state = self._newest
         if state is None or len(state.snap[1]) <= K:
@@ -564,7 +433,7 @@ class UkfEstimator:
         d_m, v_mps = odometer
         if event.kind == "tag":
             tag_s_m, d_m, in_field, span_s = event.data   # the board's speed, no faster than the motor drives
-            offset_m, var_m2 = tag_read_model(self.noise, min(abs(v_mps), self._top_mps) * span_s, in_field)
+            offset_m, var_m2 = tag_read_model(self.noise, min(abs(v_mps), self._wheel.top_mps) * span_s, in_field)
             s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
             bias_m = self.params.tag_bias_m
             fused = self._with_declared(s_m, sigma_s_m)
@@ -601,7 +470,7 @@ class UkfEstimator:
             used.reach = self._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
         with_scale = self._scale_sigma0 > 0
         sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
-        top_mps = self._top_mps
+        top_mps = self._wheel.top_mps
         if not 0.0 <= v_mps <= top_mps:
             # the odometer moved faster than the motor can drive (a count that caught up after sticking, a burst):
             # not the train's speed; it starts anywhere in what the train can do
