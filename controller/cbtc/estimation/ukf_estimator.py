@@ -22,17 +22,18 @@ keeps its own position; a balise read that the filter gates but that agrees with
 """
 
 from bisect import bisect_right
-from math import hypot, isfinite, sqrt
+from math import isfinite, sqrt
 
 from numpy.linalg import LinAlgError
 
 from cbtc.estimation.balise_reads import BaliseReads
-from cbtc.estimation.estimate import Estimate, span_offsets_m
+from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.ips_agreement import IpsAgreement
 from cbtc.estimation.track_ukf import TrackUkf, cholesky_upper
 from cbtc.estimation.ukf_history import FilterEvent, FilterState
-from cbtc.estimation.ukf_model import D, K, S, V, initial_covariance, tag_read_model
-from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST, make_params, noise_model
+from cbtc.estimation.ukf_model import D, K, S, V
+from cbtc.estimation.ukf_params import make_params, noise_model
+from cbtc.estimation.ukf_placement import placement
 from cbtc.estimation.wheel_watch import WheelWatch
 from cbtc.railway.balise import BaliseReader
 from cbtc.railway.geometry import circular_offset_m
@@ -91,21 +92,6 @@ class UkfEstimator:
         if not self.localized:
             self._declared = (self.layout.wrap(s_m), tol_m)
 
-    def _with_declared(self, s_m, sigma_s_m):
-        """(s_m, sigma_s_m) of the placement at `s_m` (1-sigma `sigma_s_m`) fused with the declared position
-        (declare_position, its tolerance taken as 3 sigma) when the two agree within 3 sigma of both; None when they
-        do not, or nothing was declared."""
-        declared = self._declared
-        if declared is None:
-            return None
-        d_s_m, tol_m = declared
-        d_sigma_m = max(tol_m / 3.0, 1e-4)
-        off_m = circular_offset_m(d_s_m, s_m, self.layout.loop_length_m)
-        if abs(off_m) > 3.0 * hypot(sigma_s_m, d_sigma_m):
-            return None
-        w = sigma_s_m ** 2 / (sigma_s_m ** 2 + d_sigma_m ** 2)
-        return s_m + w * off_m, sqrt((1.0 - w) * sigma_s_m ** 2)
-
     @property
     def confirmed(self) -> bool:
         """Located, and by two independent references: what placed the train (the IPS or a tag) and a balise where
@@ -146,32 +132,12 @@ class UkfEstimator:
     @property
     def scale_error(self):
         """The encoder scale error learnt so far (None while unlocated or when it is not estimated)."""
-        state = self._newest
-        if state is None or len(state.snap[1]) <= K:
-            return None
-        return float(state.snap[1][K])
+        return self._wheel.scale_error(self._newest)
 
     def odometer_per_m_low(self, k_sigma: float) -> float:
-        """A lower bound of the encoder's odometer metres per true metre, 1 + scale error - k_sigma sigma: the
-        controller turns a distance along the track into odometer units with it, so a train whose encoder reads short
-        still stops within its authority. A scale error learnt above k_sigma prior sigmas counts as that much (a wheel
-        that spun for a while reads true again when it grips); 1 - k_sigma * the prior sigma while unlocated or not
-        estimated; the lowest a wheel can read (the band a command may state) while the IPS or a balise puts the
-        train ahead of it, or when the bound learnt falls below that band (a slip learnt as the scale, or a scale
-        re-opened by a speed step: the train would stand for good, since only travel relearns it); not finite, it
-        says so to the caller."""
-        state = self._newest
-        if state is not None and k_sigma > 0.0 and ((state.disagree is not None and state.disagree[1] > 0.0)
-                                                    or (state.tag_offset is not None and state.tag_offset > 0.0)):
-            return WHEEL_LOWEST   # the IPS or a balise puts the train ahead of its wheel: it may read short, by any
-            #                        amount
-        if state is None or len(state.snap[1]) <= K:
-            return max(1.0 - k_sigma * self._scale_sigma0, WHEEL_LOWEST)
-        _t, x, P = state.snap
-        # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
-        k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
-        low = 1.0 + k_m - k_sigma * sqrt(max(P[K][K], 0.0))
-        return max(low, WHEEL_LOWEST) if isfinite(low) else low
+        """A lower bound of the encoder's odometer metres per true metre at `k_sigma` (WheelWatch.scale_low): the
+        controller turns a distance along the track into odometer units with it."""
+        return self._wheel.scale_low(self._newest, k_sigma, self._scale_sigma0)
 
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
@@ -205,7 +171,7 @@ class UkfEstimator:
         """Take one decoded report; `board_clock` (a BoardClock that has observed it) maps board to controller time."""
         self._clock = board_clock
         t_s = board_clock.board_s(report["t_ms"])   # the board's time line, unwrapped
-        d_m, v_mps, rolled_m, run_m, step = self._wheel.take(report, t_s, self)
+        d_m, v_mps, rolled_m, run_m, step = self._wheel.take(report, t_s, self._newest, self._scale_sigma0)
         new = [FilterEvent(t_s, "odo", (d_m, v_mps))]
         if rolled_m:
             new.append(FilterEvent(t_s, "roll", (rolled_m, run_m, d_m)))
@@ -228,33 +194,6 @@ class UkfEstimator:
             fix_t_ms, x_mm, y_mm = report["ips"]
             x_m, y_m = ips_to_track(x_mm / 1000.0, y_mm / 1000.0, self.layout.ips)
             new.append(FilterEvent(board_clock.board_s(fix_t_ms) - self.profile.ips_latency_s, "ips", (x_m, y_m)))
-
-    def odometer_per_m_high(self) -> float:
-        """An upper bound of the encoder's odometer metres per true metre (SCALE_K_SIGMA above the scale learnt;
-        the most a wheel reads while unlocated, or when the IPS or a balise puts the train behind its wheel)."""
-        state = self._newest
-        if state is None or len(state.snap[1]) <= K or (state.disagree is not None and state.disagree[0] < 0.0) \
-                or (state.tag_offset is not None and state.tag_offset < 0.0):
-            return WHEEL_HIGHEST
-        _t, x, P = state.snap
-        high = 1.0 + float(x[K]) + SCALE_K_SIGMA * sqrt(max(P[K][K], 0.0))
-        return min(high, WHEEL_HIGHEST) if isfinite(high) else WHEEL_HIGHEST
-
-    def scale_settled(self) -> bool:
-        """The wheel's scale is learnt to a quarter of the motor's learnt band, and nothing disagrees with the
-        wheel: the speeds it reads tell of the motor."""
-        state = self._newest
-        if state is None or len(state.snap[1]) <= K or state.disagree is not None or state.tag_offset is not None \
-                or state.doubt is not None:
-            return False
-        return float(state.snap[2][K][K]) <= (0.25 * self.params.motor_learnt_tol) ** 2
-
-    def scale_open(self) -> bool:
-        """The scale is still as open as a step left it (half its 1-sigma or more): a wheel already in doubt."""
-        state = self._newest
-        if state is None or len(state.snap[1]) <= K:
-            return False
-        return float(state.snap[2][K][K]) >= (0.5 * self.params.step_scale_sigma) ** 2
 
     def update_range(self, t_s: float, radio_xy, range_m: float, sigma_m: float) -> None:
         """Take a two-way TOA range (m, 1-sigma `sigma_m`) to a wayside radio at `radio_xy` (layout frame, m),
@@ -422,89 +361,13 @@ class UkfEstimator:
         return self._filter
 
     def _locate(self, event):
-        """The first tag read places the train, or the IPS where `locate_fixes` fixes agree; encoder reports and
-        ranges alone cannot. Either placement is pending (`confirmed`) until a second, independent reference agrees.
-        Called only while unlocated, so every IPS event up to this one is one of those fixes."""
-        if event.kind in ("odo", "range", "roll", "step"):
+        """The state `event` places the unlocated train in (cbtc.estimation.ukf_placement), or None."""
+        placed = placement(self, event)
+        if placed is None:
             return None
-        odometer = self._odometer_at(event.t_s)
-        if odometer is None:   # no encoder report kept yet to place it against
-            return None
-        d_m, v_mps = odometer
-        if event.kind == "tag":
-            tag_s_m, d_m, in_field, span_s = event.data   # the board's speed, no faster than the motor drives
-            offset_m, var_m2 = tag_read_model(self.noise, min(abs(v_mps), self._wheel.top_mps) * span_s, in_field)
-            s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
-            bias_m = self.params.tag_bias_m
-            fused = self._with_declared(s_m, sigma_s_m)
-            if fused is not None:   # a tag and the operator agree
-                s_m, sigma_s_m = fused
-                used = FilterState(None, tags_used=1)
-            else:
-                used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
-            used.reach = self._reads.reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
-        else:
-            anchors = []
-            for e in self._events:
-                if e.kind == "ips":
-                    anchors.append(self.layout.project(*e.data) - self._odometer_at(e.t_s)[0])
-                if e is event:
-                    break
-            placed = self._ips.agreeing(anchors[-(2 * self.params.locate_fixes - 1):])
-            if placed is None:
-                return None
-            s_m, sigma_s_m = placed[0] + d_m, placed[1]
-            # fixes of one IPS may share one lasting error (multipath): the placement covers it until a balise
-            bias_m = self.params.ips_bias_m
-            fused = self._with_declared(s_m, sigma_s_m)
-            if fused is not None:   # the IPS and the operator agree: both placements, fused
-                s_m, sigma_s_m = fused
-            low_m, high_m = (0.0, 0.0) if self._doubt_span is None else \
-                span_offsets_m(self.layout, self._doubt_span, s_m)
-            if fused is not None:
-                used = FilterState(None, ips_used=self.params.locate_fixes,
-                              doubt=None if self._doubt_span is None else (low_m, high_m))
-            else:
-                used = FilterState(None, ips_used=self.params.locate_fixes,
-                              doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
-            used.reach = self._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
-        with_scale = self._scale_sigma0 > 0
-        sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
-        top_mps = self._wheel.top_mps
-        if not 0.0 <= v_mps <= top_mps:
-            # the odometer moved faster than the motor can drive (a count that caught up after sticking, a burst):
-            # not the train's speed; it starts anywhere in what the train can do
-            v_mps, sigma_v_mps = min(max(v_mps, 0.0), top_mps), top_mps
-        x0 = [self.layout.wrap(s_m), v_mps, d_m] + ([0.0] if with_scale else [])
-        P0 = initial_covariance(len(x0), sigma_s_m, sigma_v_mps, 0.002, self._scale_sigma0)
-        self._filter = TrackUkf(self.layout, self.noise, x0, P0, event.t_s)
-        used.snap = self._filter.snapshot()
+        used, self._filter = placed
         self._filter_holds = used
         return used
-
-    def _odometer_at(self, t_s):
-        """(odometer m, speed m/s) at board time `t_s`, interpolated between the encoder reports around it; None when
-        no encoder report is kept."""
-        before = after = None
-        for e in self._events:
-            if e.kind != "odo":
-                continue
-            if e.t_s <= t_s:
-                before = e
-            else:
-                after = e
-                break
-        if before is None:
-            before = after
-        if before is None:
-            return None
-        if after is None or after is before:
-            d_m, v_mps = before.data
-            return d_m + v_mps * (t_s - before.t_s), v_mps
-        w = (t_s - before.t_s) / (after.t_s - before.t_s)
-        d_m = before.data[0] + w * (after.data[0] - before.data[0])
-        v_mps = (after.data[0] - before.data[0]) / (after.t_s - before.t_s)
-        return d_m, v_mps
 
     # --- output -------------------------------------------------------------------------------------------------------
 
@@ -525,25 +388,8 @@ class UkfEstimator:
         adt = abs(dt_s)
         var_s = P[S][S] + 2.0 * dt_s * P[S][V] + dt_s * dt_s * P[V][V] + q * adt ** 3 / 3.0
         var_v = P[V][V] + q * adt
-        ahead_m = behind_m = 0.0
-        if state.disagree is not None:
-            ahead_m, behind_m = max(0.0, state.disagree[1]), max(0.0, -state.disagree[0])
-        if state.tag_offset is not None:
-            ahead_m, behind_m = max(ahead_m, state.tag_offset), max(behind_m, -state.tag_offset)
-        if state.doubt is not None:
-            ahead_m, behind_m = max(ahead_m, state.doubt[1]), max(behind_m, -state.doubt[0])
         sigma_s_m = sqrt(max(var_s, 0.0))
-        reach = state.reach
-        if reach is not None:
-            # the wheel alone from the last balise puts the head there, whatever the IPS has pulled the filter to:
-            # beyond 3 sigma, covered too
-            ring_m = self.layout.loop_length_m
-            low_m = circular_offset_m(reach[0], x[S], ring_m) + 3.0 * sigma_s_m
-            high_m = circular_offset_m(reach[1], x[S], ring_m) - 3.0 * sigma_s_m
-            if low_m < -behind_m:
-                behind_m = -low_m
-            if high_m > ahead_m:
-                ahead_m = high_m
+        ahead_m, behind_m = state.covered(x[S], sigma_s_m, self.layout.loop_length_m)
         # by position (a keyword call costs the frozen value's __init__ half as much again): s_m, v_mps, sigma_s_m,
         # sigma_v_mps, t_s, data_t_s, ahead_m, behind_m
         est = Estimate(self._position_m(x, dt_s), float(x[V]), sigma_s_m, sqrt(var_v), now_s,

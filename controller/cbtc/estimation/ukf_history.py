@@ -1,6 +1,8 @@
 """The UKF estimator's history: each measurement as an event at its own board time, and the filter's state after
 it with the counters that depend on which measurements were used (cbtc.estimation.ukf_estimator replays them)."""
 
+from cbtc.railway.geometry import circular_offset_m
+
 _KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
 
 
@@ -58,6 +60,27 @@ class FilterState:
         #                                bias can move (dead reckoning)
         self.tag_story = tag_story     # where the newest balise read, gated, put the train less the filter's
         #                                position (m); None once a read is taken, or when the IPS shows it wrong
+
+    def covered(self, s_m, sigma_s_m, ring_m):
+        """(ahead_m, behind_m) the estimate at `s_m` (1-sigma `sigma_s_m`) covers beyond its position: where the IPS
+        or a balise may put the train, the doubt kept, and where the wheel alone from the last balise puts the head
+        beyond 3 sigma (whatever the IPS has pulled the filter to)."""
+        ahead_m = behind_m = 0.0
+        if self.disagree is not None:
+            ahead_m, behind_m = max(0.0, self.disagree[1]), max(0.0, -self.disagree[0])
+        if self.tag_offset is not None:
+            ahead_m, behind_m = max(ahead_m, self.tag_offset), max(behind_m, -self.tag_offset)
+        if self.doubt is not None:
+            ahead_m, behind_m = max(ahead_m, self.doubt[1]), max(behind_m, -self.doubt[0])
+        reach = self.reach
+        if reach is not None:
+            low_m = circular_offset_m(reach[0], s_m, ring_m) + 3.0 * sigma_s_m
+            high_m = circular_offset_m(reach[1], s_m, ring_m) - 3.0 * sigma_s_m
+            if low_m < -behind_m:
+                behind_m = -low_m
+            if high_m > ahead_m:
+                ahead_m = high_m
+        return ahead_m, behind_m
 
     def copy_with(self, snap):
         return FilterState(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
