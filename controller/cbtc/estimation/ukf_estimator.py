@@ -22,14 +22,12 @@ keeps its own position; a balise read that the filter gates but that agrees with
 """
 
 from bisect import bisect_right
-from math import isfinite, sqrt
-
-from numpy.linalg import LinAlgError
+from math import sqrt
 
 from cbtc.estimation.balise_reads import BaliseReads
 from cbtc.estimation.estimate import Estimate
 from cbtc.estimation.ips_agreement import IpsAgreement
-from cbtc.estimation.track_ukf import TrackUkf, cholesky_upper
+from cbtc.estimation.track_ukf import TrackUkf
 from cbtc.estimation.ukf_history import FilterEvent, FilterState
 from cbtc.estimation.ukf_model import D, K, S, V
 from cbtc.estimation.ukf_params import make_params, noise_model
@@ -142,17 +140,7 @@ class UkfEstimator:
     def healthy(self) -> bool:
         """The newest state is finite and its covariance positive definite (True while unlocated): the controller
         locates a train afresh when it is not."""
-        state = self._newest
-        if state is None:
-            return True
-        _t, x, P = state.snap
-        if not isfinite(sum(x) + sum(map(sum, P))):   # a NaN or an infinity anywhere
-            return False
-        try:
-            cholesky_upper(P)
-        except LinAlgError:
-            return False
-        return True
+        return self._newest is None or self._newest.healthy()
 
     def counters(self) -> dict:
         """How the measurements were used: IPS fixes and tags used or gated, unknown tags, relocations, late drops."""

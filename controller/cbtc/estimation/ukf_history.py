@@ -1,6 +1,11 @@
 """The UKF estimator's history: each measurement as an event at its own board time, and the filter's state after
 it with the counters that depend on which measurements were used (cbtc.estimation.ukf_estimator replays them)."""
 
+from math import isfinite
+
+from numpy.linalg import LinAlgError
+
+from cbtc.estimation.track_ukf import cholesky_upper
 from cbtc.railway.geometry import circular_offset_m
 
 _KIND_RANK = {"roll": 0, "step": 1, "odo": 2, "tag": 3, "ips": 4, "range": 5}
@@ -60,6 +65,17 @@ class FilterState:
         #                                bias can move (dead reckoning)
         self.tag_story = tag_story     # where the newest balise read, gated, put the train less the filter's
         #                                position (m); None once a read is taken, or when the IPS shows it wrong
+
+    def healthy(self) -> bool:
+        """Its filter is finite and its covariance positive definite."""
+        _t, x, P = self.snap
+        if not isfinite(sum(x) + sum(map(sum, P))):   # a NaN or an infinity anywhere
+            return False
+        try:
+            cholesky_upper(P)
+        except LinAlgError:
+            return False
+        return True
 
     def covered(self, s_m, sigma_s_m, ring_m):
         """(ahead_m, behind_m) the estimate at `s_m` (1-sigma `sigma_s_m`) covers beyond its position: where the IPS
