@@ -3,8 +3,11 @@
 
 cimport cython
 
+from cbtc.estimation.balise_reads cimport BaliseReads
+from cbtc.estimation.ips_agreement cimport IpsAgreement
 from cbtc.estimation.track_ukf cimport TrackUkf
 from cbtc.estimation.ukf_history cimport FilterEvent, FilterState
+from cbtc.estimation.wheel_watch cimport WheelWatch
 
 cdef class UkfEstimator:
     cdef dict __dict__
@@ -12,7 +15,10 @@ cdef class UkfEstimator:
     cdef public object layout, profile, params, noise, localized, balises
     cdef public object late_measurements, _clock, _events, _keys, _estimate_memo, _states
     cdef public object _base, _doubt_span, _declared, _trimmed, _filter, _filter_holds
-    cdef public object _wheel, _scale_sigma0, _ips, _reads
+    cdef public object _scale_sigma0
+    cdef public WheelWatch _wheel
+    cdef public IpsAgreement _ips
+    cdef public BaliseReads _reads
 
     @cython.locals(f=TrackUkf, new=FilterState)
     cpdef _apply(self, FilterState state, FilterEvent event)

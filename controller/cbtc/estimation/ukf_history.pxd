@@ -11,3 +11,6 @@ cdef class FilterState:
     cdef public object snap, ips_used, ips_rejected, tags_used, tags_rejected, gated
     cdef public object relocations, consensus, innovations, disagree, disagreements, tag_offset
     cdef public object speed_steps, doubt, pending, agreeing, reach, tag_story
+
+    cpdef covered(self, s_m, sigma_s_m, ring_m)
+    cpdef copy_with(self, snap)

@@ -160,8 +160,7 @@ class WheelWatch:
         excess_mps, over_s = found
         return excess_mps * over_s, self.params.step_scale_sigma
 
-    @staticmethod
-    def scale_error(state):
+    def scale_error(self, state):
         """The encoder scale error `state` (the filter's newest, or None) has learnt (None while unlocated or when it
         is not estimated)."""
         if state is None or len(state.snap[1]) <= K:
@@ -189,8 +188,7 @@ class WheelWatch:
         low = 1.0 + k_m - k_sigma * sqrt(max(P[K][K], 0.0))
         return max(low, WHEEL_LOWEST) if isfinite(low) else low
 
-    @staticmethod
-    def scale_high(state) -> float:
+    def scale_high(self, state) -> float:
         """An upper bound of the encoder's odometer metres per true metre (SCALE_K_SIGMA above the scale learnt;
         the most a wheel reads while unlocated, or when the IPS or a balise puts the train behind its wheel)."""
         if state is None or len(state.snap[1]) <= K or (state.disagree is not None and state.disagree[0] < 0.0) \
