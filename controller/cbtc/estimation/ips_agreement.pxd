@@ -1,8 +1,8 @@
 # The compiled build's C type for IpsAgreement (setup.py, tests/test_pxd.py): its checks are called directly at every
 # IPS fix
+# Its instances hold their slots only (no __dict__): a call of its methods goes straight to C, no look for an override
 
 cdef class IpsAgreement:
-    cdef dict __dict__
     cdef object __weakref__
     cdef public object layout, profile, params
 

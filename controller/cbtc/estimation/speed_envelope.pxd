@@ -1,5 +1,6 @@
 # The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the
 # envelope's arithmetic on C doubles, where the same float operations run in the same order
+# Its instances hold their slots only (no __dict__): a call of its methods goes straight to C, no look for an override
 
 cimport cython
 
@@ -7,7 +8,6 @@ cimport cython
 cpdef double ride_mps(double v0_mps, double dt_s, double v_ss_mps, double tau_s, double up_mps2, double down_mps2)
 
 cdef class SpeedEnvelope:
-    cdef dict __dict__
     cdef object __weakref__
     cdef public object profile, motor_tol, window_s, _anchors, _last, _gain
     cdef public object _gain_tol

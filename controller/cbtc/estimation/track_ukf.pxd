@@ -1,5 +1,6 @@
 # The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the
 # filter's arithmetic on C doubles, where the same float operations run in the same order
+# Its instances hold their slots only (no __dict__): a call of its methods goes straight to C, no look for an override
 
 cimport cython
 
@@ -10,7 +11,6 @@ cimport cython
 cpdef list _cholesky_upper4(P, double scale)
 
 cdef class TrackUkf:
-    cdef dict __dict__
     cdef object __weakref__
     cdef public object layout, noise, mean, cov, t_s, _spread
     cdef public object _wm0, _wc0, _w, _loop_m, _closed, _gate1

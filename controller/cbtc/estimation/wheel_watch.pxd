@@ -1,10 +1,10 @@
 # The compiled build's C type for WheelWatch (setup.py, tests/test_pxd.py): the filter's state is a FilterState, so
 # its slots are read directly; a report is a dict
+# Its instances hold their slots only (no __dict__): a call of its methods goes straight to C, no look for an override
 
 from cbtc.estimation.ukf_history cimport FilterState
 
 cdef class WheelWatch:
-    cdef dict __dict__
     cdef object __weakref__
     cdef public object profile, params, odo_m, first_odo_m, t_s, top_mps, rolled_m, roll_run_m, v_mps, duty_pct
     cdef public object before, envelope, motor, speed_drifts

@@ -1,10 +1,10 @@
 # The compiled build's C types for these classes: their attributes in slots (setup.py, tests/test_pxd.py); the
 # projection of a point onto the whole path runs on C doubles (the same operations in the same order)
+# Its instances hold their slots only (no __dict__): a call of its methods goes straight to C, no look for an override
 
 cimport cython
 
 cdef class Path:
-    cdef dict __dict__
     cdef object __weakref__
     cdef public object segments, closed, start_pose, length_m, end_pose, _starts
     cdef public object _lens, _seg, _seg_ends, _start, _len, _k
