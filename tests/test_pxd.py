@@ -59,3 +59,16 @@ def test_each_pxd_declares_the_attributes_its_class_sets(pxd):
         assert "__dict__" in names or "slots only" in pxd.read_text(), f"{pxd}: {name} keeps no __dict__"
         slots = names - {"__dict__", "__weakref__"}
         assert slots == stored(pxd.with_suffix(".py"), name), f"{pxd}: {name}'s slots differ from its source"
+
+
+def test_every_module_the_build_compiles_is_a_source_file():
+    # setup.py's extensions are optional (a module that fails to build stays plain Python), so a misspelt entry
+    # would be skipped in silence
+    tree = ast.parse((ROOT / "setup.py").read_text())
+    compiled = next(node.value for node in tree.body if isinstance(node, ast.Assign)
+                    and any(isinstance(t, ast.Name) and t.id == "COMPILED" for t in node.targets))
+    names = [elt.value for elt in compiled.elts]
+    assert len(names) == len(set(names))
+    for name in names:
+        path = ROOT / (name if name.startswith("firmware/") else "controller/" + name)
+        assert path.is_file(), f"setup.py compiles {name}, which is not a source file"

@@ -38,6 +38,7 @@ class TailWatch:
         self._long = deque(maxlen=LONG_SAMPLES)   # the newest length samples, for the steady length
         self.heard_s = None          # controller time of the newest fix
         self.longer = False          # the newest verdict: longer than configured (for the zone's log)
+        self._steady_m = None        # _steady_extra_m of the samples as they stand (None: not worked out since a fix)
 
     def see(self, t_s: float, tail_s_m: float, head_s_m: float) -> None:
         """A fix put the tail at `tail_s_m` when the head estimate was at `head_s_m` (both at controller time
@@ -45,6 +46,7 @@ class TailWatch:
         self._long.append(self._behind_head_m(head_s_m, tail_s_m))
         self._samples.append((tail_s_m, head_s_m))
         self.heard_s = t_s
+        self._steady_m = None
 
     @property
     def _lengths(self) -> list:
@@ -79,7 +81,12 @@ class TailWatch:
     def _steady_extra_m(self) -> float:
         """A train a few cm longer than configured, which the median of five does not tell from noise: the mean of
         the long window's samples (outliers left out) beyond 4 sigma of that mean (the samples' own spread), and
-        that 4 sigma."""
+        that 4 sigma. Worked out once a fix: every authority of the train behind asks for it."""
+        if self._steady_m is None:
+            self._steady_m = self._steady_of_window()
+        return self._steady_m
+
+    def _steady_of_window(self) -> float:
         window = sorted(self._long)
         if len(window) < 10:
             return 0.0
