@@ -48,6 +48,7 @@ def run(config, now, unit, link, maint, watchdog=None, integrity=None):
                     print("mqtt: connected to %s:%d" % (config["broker_host"], config["broker_port"]))
                 else:
                     print("mqtt: %s; retrying" % link.last_error)
+                gc.collect()   # an attempt's garbage (the socket's, umqtt's) goes before the unit steps and reports
             unit.link_ok = link.connected
         except Exception as exc:
             healthy = False

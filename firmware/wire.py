@@ -152,9 +152,15 @@ def hmac_sha256_hashlib(key, *parts):
     return outer.digest()
 
 
+def mac_hex(key, topic, body):
+    """The MAC a payload of `body` (bytes) on `topic` carries after its '#': the first 16 bytes of
+    HMAC-SHA256(key, topic + "\\n" + body), as 32 hex digits (bytes)."""
+    return binascii.hexlify(memoryview(hmac_sha256(key, topic.encode(), b"\n", body))[:_MAC_BYTES])
+
+
 def seal(key, topic, body):
     """Payload bytes for `body` (bytes) on `topic`, authenticated with `key` (bytes)."""
-    return body + b"#" + binascii.hexlify(hmac_sha256(key, topic.encode(), b"\n", body)[:_MAC_BYTES])
+    return b"#".join((body, mac_hex(key, topic, body)))   # one new object: a + b + c makes two
 
 
 # --- validation -----------------------------------------------------------------------------------------------
@@ -171,9 +177,9 @@ def check_ints(values, specs, topic, field=None):
                             % (name if field is None else (field, name), topic, specs[i + 1], specs[i + 2], value))
 
 
-def decode_sealed(key, topic, payload, kind, specs, sealer=seal, loads=json.loads):
+def decode_sealed(key, topic, payload, kind, specs, mac=mac_hex, loads=json.loads):
     """The validated message dict of a sealed payload of `kind` ("rep" or "cmd") on `topic`: authenticated with
-    `key` (`sealer` makes the seal it must carry: seal, or the controller's faster one of the same bytes), a JSON
+    `key` (`mac` gives the MAC it must carry: mac_hex, or the controller's faster one of the same bytes), a JSON
     object (read by `loads`) with header v, k, id and the integer fields of `specs` (see check_ints); WireError
     naming the problem otherwise."""
     train_id = train_id_of(topic)
@@ -186,14 +192,15 @@ def decode_sealed(key, topic, payload, kind, specs, sealer=seal, loads=json.load
     if cut < 0:
         raise WireError("payload on %s has no '#<mac>' authentication suffix" % topic)
     body = payload[:cut]
-    sealed = sealer(key, topic, body)
+    want = mac(key, topic, body)
     if compare_digest is not None:
-        diff = not compare_digest(sealed, payload)
-    else:   # in time that depends on the lengths only; both hold the same body before `cut`
-        diff = len(sealed) ^ len(payload)
+        diff = not compare_digest(want, payload[cut + 1:])
+    else:   # in time that depends on the lengths only, and with no copy of the payload's MAC
+        cut += 1
+        diff = len(want) ^ (len(payload) - cut)
         if not diff:
-            for i in range(cut, len(sealed)):
-                diff |= sealed[i] ^ payload[i]
+            for i in range(len(want)):
+                diff |= want[i] ^ payload[cut + i]
     if diff:
         raise AuthError("payload on %s fails authentication (wrong key, or altered in transit)" % topic)
     try:
@@ -258,9 +265,9 @@ COMMAND_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "sid", 0, INT31, "rseq
                 "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX)
 
 
-def decode_command(key, topic, payload, specs=COMMAND_INTS, sealer=seal, loads=json.loads):
+def decode_command(key, topic, payload, specs=COMMAND_INTS, mac=mac_hex, loads=json.loads):
     """The command dict of a sealed payload, validated against `specs` (see decode_sealed); WireError with the
     reason otherwise."""
-    msg = decode_sealed(key, topic, payload, "cmd", specs, sealer, loads)
+    msg = decode_sealed(key, topic, payload, "cmd", specs, mac, loads)
     check_fields(msg, specs, topic)
     return msg

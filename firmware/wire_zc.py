@@ -33,10 +33,10 @@ TAG_INTS, IPS_INTS, RNG_INTS = messages.TAG, messages.IPS, messages.RANGING
 _HEX = "0123456789abcdefABCDEF"
 
 
-def decode_report(key, topic, payload, sealer=wire.seal, loads=wire.json.loads):
-    """The report dict of a sealed payload, validated (`sealer` and `loads` as for wire.decode_sealed); WireError
+def decode_report(key, topic, payload, mac=wire.mac_hex, loads=wire.json.loads):
+    """The report dict of a sealed payload, validated (`mac` and `loads` as for wire.decode_sealed); WireError
     with the reason otherwise."""
-    return check_report(decode_sealed(key, topic, payload, "rep", REPORT_INTS, sealer, loads), topic)
+    return check_report(decode_sealed(key, topic, payload, "rep", REPORT_INTS, mac, loads), topic)
 
 
 def _null_or_ints(msg, field, specs, topic, required):

@@ -33,23 +33,25 @@ def test_hmac_matches_the_standard_library():
             assert wire.hmac_sha256(key, msg[:2], msg[2:]) == want
 
 
-def test_a_message_sealed_again_is_looked_up_and_the_memory_of_them_is_bounded():
-    """The controller's seal gives the board's payload; after remember_sealed() a body sealed twice in one process
-    (sealed, then checked, in a simulation) is hashed once: the second seal comes from what the first left; another
-    key or topic is hashed anew; the payloads kept stay under their bound whatever the traffic."""
-    board = wire.seal
+def test_a_sealed_messages_mac_is_looked_up_when_checked_and_the_memory_of_them_is_bounded():
+    """The controller's seal and MAC give the board's bytes; after remember_sealed() a body sealed in this process
+    (then checked, in a simulation) is hashed once: its check takes the MAC the seal left; another key or topic is
+    hashed anew; the MACs kept stay under their bound whatever the traffic."""
     body, topic = b'{"a":' + os.urandom(40).hex().encode() + b"}", "cbtc/train/A/report"
     saved = fast_wire._RECENT, fast_wire._WRITTEN
     fast_wire._RECENT = fast_wire._WRITTEN = None
     try:
-        assert fast_wire.seal(KEY, topic, body) == board(KEY, topic, body)
+        assert fast_wire.seal(KEY, topic, body) == wire.seal(KEY, topic, body)
+        assert fast_wire.mac_hex(KEY, topic, body) == wire.mac_hex(KEY, topic, body)
+        assert wire.seal(KEY, topic, body) == body + b"#" + wire.mac_hex(KEY, topic, body)
         fast_wire.remember_sealed()   # as a simulation does
-        first = fast_wire.seal(KEY, topic, body)
-        assert (KEY, topic, body) in fast_wire._RECENT
-        assert fast_wire.seal(KEY, topic, body) is first and first == board(KEY, topic, body)
-        assert (KEY, topic, body) not in fast_wire._RECENT   # taken: a third seal hashes again
-        assert fast_wire.seal(b"other", topic, body) == board(b"other", topic, body)
-        assert fast_wire.seal(KEY, "cbtc/train/B/report", body) == board(KEY, "cbtc/train/B/report", body)
+        sealed = fast_wire.seal(KEY, topic, body)
+        mac = fast_wire._RECENT[(KEY, topic, body)]
+        assert fast_wire.mac_hex(KEY, topic, body) is mac and sealed == body + b"#" + mac
+        assert (KEY, topic, body) not in fast_wire._RECENT   # taken: a second check hashes again
+        assert fast_wire.mac_hex(KEY, topic, body) == mac
+        assert fast_wire.mac_hex(b"other", topic, body) == wire.mac_hex(b"other", topic, body)
+        assert fast_wire.mac_hex(KEY, "cbtc/train/B/report", body) == wire.mac_hex(KEY, "cbtc/train/B/report", body)
         for i in range(3 * fast_wire._RECENT_MAX):
             fast_wire.seal(KEY, topic, b"%d" % i)
         assert len(fast_wire._RECENT) <= fast_wire._RECENT_MAX

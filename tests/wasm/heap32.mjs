@@ -48,6 +48,12 @@ for (let i = 0; i < passes; i++) {
   py(`_u = heap_probe.one_pass(${ms})`);
   peak = Math.max(peak, mp.globals.get("_u"));
   live = Math.max(live, heap());
+  py("_h = heap_probe.halved()");
+  if (mp.globals.get("_h")) {   // the loop collects after a connection attempt, then the unit steps
+    py("_u = heap_probe.second_half()");
+    peak = Math.max(peak, mp.globals.get("_u"));
+    live = Math.max(live, heap());
+  }
 }
 py("import usocket\n_s = heap_probe.state() + ' %d %d' % (usocket.REPORTS[0], usocket.COMMANDS[0])");
 const [mode, seq, cseq, rejected, reports, commands] = mp.globals.get("_s").split(" ");

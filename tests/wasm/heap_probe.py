@@ -2,7 +2,8 @@
 
 The WebAssembly port frees garbage only between calls from JavaScript, so heap32.mjs runs the board's boot halves and
 each pass of its loop as separate calls, with a collection in between: `boot()`, `assemble()`, then `one_pass(ms)`
-repeatedly. Each does what firmware/train.py main() and run() do at that point, on a clock the driver advances.
+repeatedly (and `second_half()` after a pass that connected). Each does what firmware/train.py main() and run() do at
+that point, on a clock the driver advances.
 """
 
 import gc
@@ -50,7 +51,8 @@ def _roll(unit, dt_ms):
 
 
 def one_pass(now_ms):
-    """One pass of train.run at board time `now_ms`; returns the heap in use at its end, before collection."""
+    """One pass of train.run at board time `now_ms`, or its first half when it connects (train.run collects after a
+    connection attempt: second_half() is the rest); returns the heap in use at its end, before collection."""
     _roll(_["unit"], now_ms - _["ms"])
     _["ms"] = now_ms
     unit, link = _["unit"], _["link"]
@@ -59,14 +61,31 @@ def one_pass(now_ms):
             link.poll(now_ms)
         elif link.due(now_ms) and unit.motor.mode == "brake":
             link.connect(now_ms)
-        unit.link_ok = link.connected
-        unit.step(now_ms)
+            _["half"] = True
+            return gc.mem_alloc()
+    except Exception as exc:
+        print("link: %r" % (exc,))
+    return second_half()
+
+
+def second_half():
+    """The rest of a pass: the unit steps (after a connection attempt, in a call of its own: a collection between)."""
+    unit = _["unit"]
+    _["half"] = False
+    try:
+        unit.link_ok = _["link"].connected
+        unit.step(_["ms"])
     except Exception as exc:
         print("loop: %r" % (exc,))
         unit.motor.brake()
     if _["wdt"] is not None:
         _["wdt"].feed()
     return gc.mem_alloc()
+
+
+def halved():
+    """True when the last one_pass stopped after a connection attempt (second_half() is due)."""
+    return _.get("half", False)
 
 
 def feed_ips(frame):

@@ -15,13 +15,13 @@ from cbtc.firmware import messages, wire, wire_zc
 _KEYED = {}   # key -> (inner, outer): SHA-256 states that have taken the key's two padded blocks
 
 
-_RECENT = None   # once remember_sealed() is called: (key, topic, body) -> its payload, for bodies sealed once lately
+_RECENT = None   # once remember_sealed() is called: (key, topic, body) -> its MAC, for bodies sealed once lately
 _RECENT_MAX = 256
 _WRITTEN = None  # once remember_sealed() is called: a body written here lately -> the object json.loads gives for it
 
 
 def remember_sealed():
-    """Keep each message's payload until it is sealed again (checked), and the object each report or command body
+    """Keep each sealed message's MAC until its reader checks it, and the object each report or command body
     written here stands for until it is read: for a process that seals and checks the same messages (a simulation's
     boards and zone), each is then hashed once and its JSON never scanned. A live zone checks messages it did not
     seal and seals messages it does not check, so it does not call this: the memory would only cost it time."""
@@ -63,27 +63,31 @@ def hmac_sha256(key, msg, _digest_name="sha256"):
     return outer.digest()
 
 
-def _sealer():
-    """wire.seal, the same payload from hmac_sha256 in one piece; after remember_sealed(), a body sealed a second
-    time on the same topic with the same key (its reader checking it) is looked up, not hashed again."""
+def _macs():
+    """(mac_hex, seal): wire.mac_hex and wire.seal, the same bytes from hmac_sha256 in one piece; after
+    remember_sealed(), the MAC of a body sealed here is looked up, not hashed again, when its reader checks it."""
     mac_bytes = wire._MAC_BYTES
 
-    def seal(key, topic, body):
+    def mac_hex(key, topic, body):
         recent = _RECENT
         if recent is not None:
-            payload = recent.pop((key, topic, body), None)
-            if payload is not None:
-                return payload
-        payload = body + b"#" + hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:mac_bytes])
-        if recent is not None:
-            _remember(recent, (key, topic, body), payload)
-        return payload
+            mac = recent.pop((key, topic, body), None)
+            if mac is not None:
+                return mac
+        return hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:mac_bytes])
 
+    def seal(key, topic, body):
+        mac = hexlify(hmac_sha256(key, topic.encode() + b"\n" + body)[:mac_bytes])
+        if _RECENT is not None:
+            _remember(_RECENT, (key, topic, body), mac)
+        return body + b"#" + mac
+
+    mac_hex.__doc__ = wire.mac_hex.__doc__
     seal.__doc__ = wire.seal.__doc__
-    return seal
+    return mac_hex, seal
 
 
-seal = _sealer()
+mac_hex, seal = _macs()
 
 
 _scan_once = json.decoder.JSONDecoder().scan_once
@@ -111,12 +115,12 @@ def loads(data):
 
 def decode_command(key, topic, payload):
     """wire.decode_command: the command dict of a sealed payload, validated; WireError with the reason otherwise."""
-    return _decode_command(key, topic, payload, _COMMAND_INTS, seal, loads)
+    return _decode_command(key, topic, payload, _COMMAND_INTS, mac_hex, loads)
 
 
 def decode_report(key, topic, payload):
     """wire_zc.decode_report: the report dict of a sealed payload, validated; WireError with the reason otherwise."""
-    return _check_report(_decode_sealed(key, topic, payload, "rep", _REPORT_INTS, seal, loads), topic)
+    return _check_report(_decode_sealed(key, topic, payload, "rep", _REPORT_INTS, mac_hex, loads), topic)
 
 
 _decode_command, _decode_sealed, _check_report = wire.decode_command, wire.decode_sealed, wire_zc.check_report
