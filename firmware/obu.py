@@ -9,7 +9,7 @@ target speed of zero; a speed over the braking curve by a margin trips the motor
 gap to the train ahead shorter than the emergency braking distance (the collision guard, fault "guard").
 
 A board loads this module's bytecode onto its heap, where every function costs bytes, so the unit's long methods
-stay whole. Split by what they do, each costs more of the 32-bit loop heap (tests/test_heap32.py, 34688 B whole):
+stay whole. Split by what they do, each costs more of the 32-bit loop heap (tests/test_heap32.py, 34528 B whole):
 `_sample` into reading, speed and encoder checks 224 B, `_control` into protection, reference and drive 256 B, the
 config check out of `__init__` 48 B; the module split (its defaults and their check alone, as a module of their own)
 864 B.
