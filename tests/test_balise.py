@@ -75,7 +75,7 @@ def test_trains_locate_on_balise_telegrams_alone():
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
     for train in summary["trains"]:
         assert train["estimation_rmse_m"] < 0.015
-    counts = sim.zc.trains["A"].estimator.counters()
+    counts = sim.zc.state_of("A").estimator.counters()
     assert counts["balise_telegram_ok"] + counts["balise_telegram_corrected"] >= 6
     assert counts["unknown_tags"] == counts["balise_telegram_rejected"]
 

@@ -118,7 +118,7 @@ def test_the_controller_takes_the_shorter_of_estimated_and_measured_gap_and_rais
 
     zc = ZoneController(load_layout("itb_square"), [TrainSetup("A", b"k" * 16), TrainSetup("B", b"j" * 16)], Quiet(),
                         lambda: 10.0, MovingBlockPolicy())
-    state = zc.trains["B"]
+    state = zc.state_of("B")
 
     def checked_gap_m(state, gap_est_m, sigma_m, now_s):   # as the moving block policy and the zone take it
         gap_m, alarm = rules.checked_gap_m(gap_est_m, sigma_m, state.rng_gap, now_s, zc.params, zc.ranging_sigma_m,

@@ -191,7 +191,7 @@ def test_the_zone_gives_a_train_with_a_failed_encoder_no_authority_until_it_is_l
                                             TrainSpec("B", 0.0, (), profile)]))
     sim.scheduler.run_until(10.0)
     leader = sim.trains[0]
-    state = sim.zc.trains["A"]
+    state = sim.zc.state_of("A")
     assert leader.v_mps > 0.3 and state.estimator.localized
     count = leader.encoder.count
 
@@ -203,7 +203,7 @@ def test_the_zone_gives_a_train_with_a_failed_encoder_no_authority_until_it_is_l
     assert leader.obu.mode == "trip" and state.encoder_failed and not state.estimator.localized
     leader.encoder.count = count
     held = []
-    sim.scheduler.call_every(0.05, lambda now: held.append((now, state.estimator.localized, sim.zc.trains["B"].eoa_mm,
+    sim.scheduler.call_every(0.05, lambda now: held.append((now, state.estimator.localized, sim.zc.state_of("B").eoa_mm,
                                                             sim.trains[1].v_mps)), start_s=10.5)
     sim.scheduler.run_until(30.0)
     summary = sim.recorder.summary()

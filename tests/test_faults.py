@@ -31,7 +31,7 @@ def run(text, until_s, encoder_channels=2):
                                          for t in config.trains])
     sim = Simulation(config)
     sim.scheduler.run_until(AT_S - 0.01)
-    return sim, sim.trains[0], sim.zc.trains["T1"]
+    return sim, sim.trains[0], sim.zc.state_of("T1")
 
 
 def test_every_fault_has_a_schedule_and_its_parameters_are_checked():

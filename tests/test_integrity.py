@@ -135,7 +135,7 @@ def test_a_train_longer_than_configured_is_kept_clear_of_by_its_tail_beacon(layo
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [] and summary["granted_beyond_m"] < 0.0, summary
-    assert sim.trains[1].length_m > 0.45 and sim.zc.trains["T2"].tail.confirmed
+    assert sim.trains[1].length_m > 0.45 and sim.zc.state_of("T2").tail.confirmed
     assert min(t["distance_m"] for t in summary["trains"]) > 3.0, summary
 
 
@@ -144,7 +144,7 @@ def test_a_car_that_comes_off_leaves_its_place_occupied_and_its_train_braked():
     sim.run()
     summary = sim.recorder.summary()
     assert violations(summary) == [], summary
-    assert sim.trains[1].obu.split and sim.zc.trains["T2"].limited_by.startswith("held: its train line opened")
+    assert sim.trains[1].obu.split and sim.zc.state_of("T2").limited_by.startswith("held: its train line opened")
     assert "a car come off T2" in sim.zc.obstacles and sim.strays and sim.strays[0].length_m == pytest.approx(0.2)
 
 

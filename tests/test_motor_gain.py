@@ -112,5 +112,5 @@ def test_a_stop_keeps_the_motor_learnt():
     learnt = []
     for t_s in range(1, 21):
         sim.scheduler.run_until(float(t_s))
-        learnt.append(sim.zc.trains["T1"].estimator.counters()["motor_learnt_s"])
+        learnt.append(sim.zc.state_of("T1").estimator.counters()["motor_learnt_s"])
     assert learnt[-1] >= 3.0 and all(b >= a for a, b in zip(learnt, learnt[1:])), learnt

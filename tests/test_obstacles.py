@@ -103,7 +103,7 @@ def test_a_board_the_zone_cannot_command_is_kept_as_an_obstacle_and_named(layout
     else:
         train_id = fault.split("train=")[1].split(",")[0]
         assert any(f"two boards report as train {train_id}" in r.getMessage() for r in caplog.records)
-        assert sim.zc.trains[train_id].limited_by == f"held: two boards report as {train_id}"
+        assert sim.zc.state_of(train_id).limited_by == f"held: two boards report as {train_id}"
 
 
 def test_a_board_put_down_while_the_broker_is_down_connects_once_it_is_back():

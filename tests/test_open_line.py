@@ -37,7 +37,7 @@ def test_trains_on_a_line_stop_at_each_station_ahead_once():
     sim.run()
     summary = sim.recorder.summary()
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
-    front, rear = sim.zc.trains["T2"], sim.zc.trains["T1"]
+    front, rear = sim.zc.state_of("T2"), sim.zc.state_of("T1")
     assert front.dwells == 1 and rear.dwells == 2   # the front one starts past X; neither dwells at Y for ever
     assert front.stop_overruns == 0 and rear.stop_overruns == 0
 

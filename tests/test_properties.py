@@ -184,7 +184,7 @@ def the_zone_takes_exactly_the_fresh_reports(actions):
     now = [0.0]
     zc = ZoneController(load_layout("itb_square"), [TrainSetup("A", p.KEY)], _NullBus(), lambda: now[0],
                         policy=None, estimator_factory=OdometryEstimator, event_driven=False)
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     boot_id, seq, t_ms, sent, restarts, rebooted = 1, 0, 0, [], 0, False
     for kind, arg in actions:
         if kind == "silence":

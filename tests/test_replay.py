@@ -79,7 +79,7 @@ def test_an_old_report_after_a_silence_is_refused_and_a_new_boot_is_a_restart(ca
     zc = _zone(now)
     topic = wire.topic_report("A")
     recorded = _stream(zc, now, 5, range(20))
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     assert state.boots.last_seq == 19 and state.reports_rejected == 0 and state.boots.answered
     now[0] += 9.0                                   # silent for 9 s: a replay is still a replay
     with caplog.at_level(logging.WARNING, logger="cbtc.zone"):
@@ -99,7 +99,7 @@ def test_reports_of_the_boot_a_board_restarted_from_are_refused_until_the_new_bo
     the restart (they echo this controller's session) never take the train back to the old boot."""
     now = [0.0]
     zc = _zone(now)
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     recorded = _stream(zc, now, 5, range(20))
     _stream(zc, now, 6, range(3), t0_ms=0, answering=False)   # the restart: boot 6, not answering yet
     assert state.boots.boot == 6 and state.restarts == 1
@@ -113,7 +113,7 @@ def test_reports_of_the_boot_a_board_restarted_from_are_refused_until_the_new_bo
 def test_a_recorded_boot_never_takes_over_a_board_that_answers():
     now = [0.0]
     zc = _zone(now)
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     _stream(zc, now, 5, range(200), t0_ms=60000)       # the real board, up for a minute, answering
     ghost = [_report(3, seq, 4000 + 50 * seq, 0) for seq in range(10)]   # recorded in a boot never seen here
     for payload in ghost:
@@ -125,7 +125,7 @@ def test_a_recorded_boot_never_takes_over_a_board_that_answers():
 def test_a_replay_that_took_over_an_unreachable_board_gives_it_back_and_holds_the_zone_meanwhile():
     now = [0.0]
     zc = _zone(now)
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     _stream(zc, now, 5, range(20))
     now[0] += 30.0                                     # the real board out of reach for 30 s
     _stream(zc, now, 3, range(5), t0_ms=2000, answering=False)   # a recorded boot: it never answers
@@ -143,7 +143,7 @@ def test_no_train_gets_authority_while_another_does_not_answer(square, caplog):
     deaf.obu.on_message = lambda topic, payload, now_ms: None   # a board that never takes a command of ours
     with caplog.at_level(logging.WARNING, logger="cbtc.zone"):
         sim.run()
-    assert not sim.zc.trains[deaf.train_id].boots.answered
+    assert not sim.zc.state_of(deaf.train_id).boots.answered
     said = [r.getMessage() for r in caplog.records if "have not answered" in r.getMessage()]
     assert len(said) == 1 and said[0].startswith(f"train {deaf.train_id}:") and "same key" in said[0]
     assert sim.trains[0].travelled_m < 0.01 and deaf.travelled_m < 0.01

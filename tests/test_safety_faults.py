@@ -55,7 +55,7 @@ def test_follower_stops_behind_a_leader_that_stops_dead(square):
     run_to(sim, 20.0)
     leader, follower = sim.trains
     assert follower.v_mps > 0.3, "the follower is running when the leader stops"
-    assert sim.zc.trains["B"].mode in ("sync", "free")
+    assert sim.zc.state_of("B").mode in ("sync", "free")
     # the leader stops dead: speed zero at once, wheels locked from now on
     leader.stop_dead()
     run_to(sim, 30.0)
@@ -73,15 +73,15 @@ def test_stale_leader_data_shrinks_the_authority(square):
     sim = two_trains(square, leader_v_mps=0.3)
     run_to(sim, 12.0)
     zc = sim.zc
-    eoa_before = zc.trains["B"].eoa_mm
+    eoa_before = zc.state_of("B").eoa_mm
     run_to(sim, 13.0)
-    assert zc.trains["B"].eoa_mm > eoa_before, "with fresh data the authority extends as the leader moves"
+    assert zc.state_of("B").eoa_mm > eoa_before, "with fresh data the authority extends as the leader moves"
     follower = sim.trains[1]
     assert follower.v_mps > 0.2
     sim.broker.set_link("train-A", up=LinkProfile(latency_s=0.004, loss=1.0))
-    held = zc.trains["B"].eoa_mm             # in the follower's own odometer frame, like every end of authority
+    held = zc.state_of("B").eoa_mm             # in the follower's own odometer frame, like every end of authority
     limits = []                               # (controller time, end of authority granted)
-    sim.scheduler.call_every(0.05, lambda now: limits.append((now, zc.trains["B"].eoa_mm)), start_s=13.001)
+    sim.scheduler.call_every(0.05, lambda now: limits.append((now, zc.state_of("B").eoa_mm)), start_s=13.001)
     run_to(sim, 20.0)
     eoas = [e for _, e in limits]
     assert max(eoas) <= held, "stale data of the train ahead never extends the authority"
@@ -157,7 +157,7 @@ def test_a_rebooted_board_is_located_afresh_and_stays_safe(square):
     assert train.obu.boot_id != old.boot_id
     train.frozen = False
     run_to(sim, 45.0)
-    state = sim.zc.trains[train.train_id]
+    state = sim.zc.state_of(train.train_id)
     assert state.restarts == 1
     assert train.obu.cseq > 0, (f"the rebooted board obeys commands again "
                                 f"({train.obu.rejected}: {train.obu.last_reject})")
@@ -174,7 +174,7 @@ def test_an_encoder_that_reads_short_still_stops_within_the_authority(square):
                                     trains=[TrainSpec("A", square.wrap(1.5 + leader.length_m), (), leader),
                                             TrainSpec("B", 0.0, (), profile)]), keep_samples=True)
     run_to(sim, 20.0)
-    est = sim.zc.trains["B"].estimator
+    est = sim.zc.state_of("B").estimator
     low = est.odometer_per_m_low(sim.config.params.k_sigma)
     assert 0.93 < low <= 0.96, "a bound below the true 0.96 odometer metres per metre, learnt to within 3 %"
     sim.trains[0].stop_dead()
@@ -197,7 +197,7 @@ def test_a_train_whose_encoder_fails_while_its_ips_is_a_metre_off_is_not_placed_
     assert summary["encoder_trips"] >= 1, "the encoder fault reached the zone: T2 was located afresh"
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
     assert summary["granted_beyond_m"] < 0.0
-    assert sim.zc.trains["T2"].estimator.localized and sim.trains[1].travelled_m > 5.0   # and it runs on
+    assert sim.zc.state_of("T2").estimator.localized and sim.trains[1].travelled_m > 5.0   # and it runs on
 
 
 @pytest.mark.parametrize("scale", [-0.4, float("nan"), 3.0])
@@ -206,7 +206,7 @@ def test_an_encoder_scale_no_wheel_can_have_gives_no_authority_and_the_train_sto
     would reach anywhere, so the zone extends none and the train brakes to a stop; the train ahead runs on."""
     sim = two_trains(square, gap_m=2.5)
     run_to(sim, 8.0)
-    state = sim.zc.trains["B"]
+    state = sim.zc.state_of("B")
     assert sim.trains[1].v_mps > 0.3
     state.estimator.odometer_per_m_low = lambda k_sigma: scale
     eoa_mm = state.eoa_mm
@@ -223,7 +223,7 @@ def test_a_stop_list_of_one_station_dwells_once_a_lap_and_leaves_it(square):
     its own departure as an overrun."""
     sim = Simulation(ScenarioConfig(layout=square, seed=1, duration_s=60.0, trains=[TrainSpec("A", 0.0, ("A",))]))
     sim.run()
-    state = sim.zc.trains["A"]
+    state = sim.zc.state_of("A")
     laps = sim.recorder.laps(0)
     assert laps >= 2 and laps <= state.dwells <= laps + 1 and state.stop_overruns == 0
 
@@ -309,8 +309,8 @@ def test_a_train_that_runs_backwards_when_driven_is_braked_and_held(distance_m):
     summary = sim.recorder.summary()
     t2 = sim.trains[1]
     assert violations(summary) == [], summary
-    assert t2.obu.reverse and t2.obu.mode == "trip" and "reverse" in sim.zc.trains["T2"].report["flt"]
-    assert sim.zc.trains["T2"].limited_by.startswith("held: it ran backwards when driven")
+    assert t2.obu.reverse and t2.obu.mode == "trip" and "reverse" in sim.zc.state_of("T2").report["flt"]
+    assert sim.zc.state_of("T2").limited_by.startswith("held: it ran backwards when driven")
     assert distance_m - t2._reverse_m < 0.06   # braked within 6 cm of backward travel
     assert min(t["distance_m"] for t in summary["trains"] if t["train"] != "T2") > 3.0, summary
 
@@ -446,7 +446,7 @@ def test_the_authority_on_board_ends_within_the_margin_for_a_wheel_that_begins_t
 
     zc = ZoneController(load_layout("itb_square"), [TrainSetup("A", b"k" * 16)], Quiet(), lambda: 10.0,
                         MovingBlockPolicy())
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     state.estimator = Wheel()
     state.report = {"odo_mm": 5000, "v_mmps": 400, "boot": 1, "seq": 7}
     state.report_t_s = 10.0

@@ -88,7 +88,7 @@ def test_every_mistake_names_the_file_line_key_and_fix(tmp_path, change, line, n
 
 
 def test_trains_overlapping_at_the_start_and_laps_on_a_line_are_refused(tmp_path):
-    with pytest.raises(ConfigError, match="trains B and A overlap at the start"):
+    with pytest.raises(ConfigError, match="trains B and A overlap or touch at the start"):
         load_scenario(write(tmp_path, GOOD.replace("gap_m: 0.2", "gap_m: 0.0").replace(
             "start: {behind: A, gap_m: 0.0}", "start: 0.5")))
     line = "layout: straight_test\nlaps: 2\ntrains:\n  - {id: A, start: 1.0}\n"

@@ -176,10 +176,10 @@ def test_a_followed_train_is_asked_for_fast_reports_and_a_lone_one_is_not():
         return (reports[-1]["t_ms"] - reports[0]["t_ms"]) / (reports[-1]["seq"] - reports[0]["seq"])
 
     sim.scheduler.run_until(4.0)
-    assert sim.zc.trains["B"].authority.reason.startswith("horizon"), "B is still far behind A"
+    assert sim.zc.state_of("B").authority.reason.startswith("horizon"), "B is still far behind A"
     early = period_ms(0, 2.0, 4.0)
     sim.scheduler.run_until(30.0)
-    assert sim.zc.trains["B"].safe_m < 0.2, "B has caught up and follows A"
+    assert sim.zc.state_of("B").safe_m < 0.2, "B has caught up and follows A"
     assert early == pytest.approx(50, abs=1)
     assert period_ms(0, 25.0, 30.0) == pytest.approx(20, abs=1)
     assert period_ms(1, 25.0, 30.0) == pytest.approx(50, abs=1), "nobody follows B"

@@ -57,7 +57,7 @@ def test_the_zone_governs_trains_whose_clocks_wrap_mid_run():
         train.clock_offset_ms = PERIOD - 5000 - 1000 * i
     summary = sim.run().summary()
     for train in sim.trains:
-        state = sim.zc.trains[train.train_id]
+        state = sim.zc.state_of(train.train_id)
         assert state.reports_rejected == 0 and state.restarts == 0 and train.obu.rejected == 0
         assert train.obu.cseq > 300 and train.travelled_m > 4.0
     assert sum(sim.recorder.collisions) == 0 and sum(sim.recorder.overruns) == 0, summary

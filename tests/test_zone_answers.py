@@ -29,7 +29,7 @@ def test_no_command_repeats_the_one_before_and_every_report_is_answered():
             assert {k: v for k, v in after.items() if k != "seq"} != {k: v for k, v in before.items() if k != "seq"}
         # each report the zone took (after the train was located) has its own answer
         answered = {c["rseq"] for c in commands}
-        taken = sim.zc.trains[train_id].reports_taken
+        taken = sim.zc.state_of(train_id).reports_taken
         assert len(answered) >= taken - 20, (train_id, len(answered), taken)
     for row in summary["trains"]:
         assert row["commands_rejected_onboard"] == 0, row

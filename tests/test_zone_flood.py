@@ -65,7 +65,7 @@ def test_a_flood_of_bad_reports_is_counted_quietly_with_flat_memory(mosquitto):
         before = rss_bytes()
         subprocess.run([sys.executable, "-c", STRANGER, str(mosquitto.port)], check=True, timeout=60)
         deadline = time.monotonic() + 10
-        while zc.trains["A"].reports_rejected < 2001 and time.monotonic() < deadline:
+        while zc.state_of("A").reports_rejected < 2001 and time.monotonic() < deadline:
             time.sleep(0.05)
         time.sleep(0.3)
         gc.collect()
@@ -73,7 +73,7 @@ def test_a_flood_of_bad_reports_is_counted_quietly_with_flat_memory(mosquitto):
     finally:
         logging.getLogger("cbtc.zone").removeHandler(lines)
         zone_bus.disconnect()
-    assert zc.trains["A"].reports_rejected == 2001 and zc.unknown_reports == 200
+    assert zc.state_of("A").reports_rejected == 2001 and zc.unknown_reports == 200
     assert zc.refusals.total("A") == 2001
     print("%d log lines, longest %d characters, resident memory %+.2f MB" % (
         len(lines.lines), max(map(len, lines.lines)), grown / 1e6))
@@ -119,7 +119,7 @@ def test_a_board_with_another_key_is_said_once_per_10_s_with_the_count_the_key_s
     assert len(said) == 3 and len(lines.lines) == 3, lines.lines
     assert "(x200 since this line last)" in said[1] and "(x200 since this line last)" in said[2]
     assert all("keys file keys.json" in line and "cbtc flash --keys FILE" in line for line in said)
-    assert zc.trains["A"].reports_rejected == 500 and zc.refusals.total("A") == 500
+    assert zc.state_of("A").reports_rejected == 500 and zc.refusals.total("A") == 500
 
 
 def test_a_board_of_another_protocol_version_is_told_to_be_flashed_with_this_ones_firmware():
@@ -144,4 +144,4 @@ def test_a_board_of_another_protocol_version_is_told_to_be_flashed_with_this_one
         logger.removeHandler(lines)
     assert len(lines.lines) == 1 and lines.lines[0].startswith("train A: invalid report"), lines.lines
     assert f"names version {wire.VERSION - 1}" in lines.lines[0] and "cbtc flash" in lines.lines[0]
-    assert zc.trains["A"].reports_rejected == 1
+    assert zc.state_of("A").reports_rejected == 1

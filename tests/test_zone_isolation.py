@@ -26,7 +26,7 @@ def extreme(rng, lo, hi, near=None):
 
 def extreme_report(rng, zc, key):
     """A sealed report of train A with every field in range, most at an extreme, near its newest accepted one."""
-    base = zc.trains["A"].report or {}
+    base = zc.state_of("A").report or {}
     t = base.get("t_ms", 0)
     odo = base.get("odo_mm")
     fields = dict(
@@ -65,7 +65,7 @@ def test_extreme_reports_of_one_train_never_escape_nor_poison_the_zone(caplog):
                 sim.scheduler.run_until(sim.scheduler.now_s() + 0.1)
                 finite_picture(zc)
     finite_picture(zc)
-    state = zc.trains["A"]
+    state = zc.state_of("A")
     assert state.reports_rejected > 300 and state.odometer_jumps + state.failures + state.encoder_failures > 0
     assert len(caplog.records) < 200 and all(len(r.getMessage()) <= 200 for r in caplog.records)
     # the real boards go on: both trains are located again and run, with no collision and no overrun
@@ -75,7 +75,7 @@ def test_extreme_reports_of_one_train_never_escape_nor_poison_the_zone(caplog):
     finite_picture(zc)
     summary = sim.recorder.summary()
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
-    assert all(zc.trains[t].estimator.localized for t in ("A", "B"))
+    assert all(zc.state_of(t).estimator.localized for t in ("A", "B"))
     assert sim.trains[1].travelled_m > travelled_b + 2.0
     assert all(t.travelled_m > before + 1.0 for t, before in zip(sim.trains, travelled_32)), "both run on"
 

@@ -307,13 +307,22 @@ def _start(r, item, where, layout, by_id, profile):
             r.fail(start, "behind", f"{path}.behind", f"must name a train listed before this one, one of "
                                                       f"{sorted(by_id) or 'none yet'}")
         gap_m = r.number(start, "gap_m", f"{path}.gap_m", minimum=0.0)
+        if gap_m <= 0.0:
+            r.fail(start, "gap_m", f"{path}.gap_m", f"{gap_m}: the train would touch {ahead}; give a gap above 0, "
+                                                    f"e.g. gap_m: 0.15")
         s0_m = by_id[ahead].s0_m - by_id[ahead].profile.length_m - gap_m
         if layout.closed:
             s0_m = layout.wrap(s0_m)
     else:
         s0_m = r.number(item, "start", path, minimum=0.0)
-        if layout.closed:
-            s0_m = layout.wrap(s0_m)
+        if layout.closed and s0_m >= layout.length_m:
+            r.fail(item, "start", path, f"{s0_m} m is past the loop's end ({layout.length_m:.3f} m round): give a "
+                                        f"position from 0 to {layout.length_m:.3f} m, e.g. "
+                                        f"{s0_m % layout.length_m:.3f}")
+    if profile.length_m >= layout.length_m:
+        r.fail(item, "profile", f"{where}.profile.length_m", f"a train {profile.length_m} m long does not fit on "
+                                                             f"{layout.name} ({layout.length_m:.3f} m): give a "
+                                                             f"shorter train")
     if not layout.closed and not profile.length_m <= s0_m <= layout.length_m:
         r.fail(item, "start", path, f"the train's head at {s0_m:.3f} m puts it off the line (it is "
                                     f"{profile.length_m} m long, the line {layout.length_m:.3f} m): start it between "
@@ -322,16 +331,16 @@ def _start(r, item, where, layout, by_id, profile):
 
 
 def _check_apart(r, data, layout, specs):
-    """No two trains overlap at the start."""
+    """No two trains overlap or touch at the start."""
     order = sorted(specs, key=lambda s: s.s0_m)
     pairs = zip(order, order[1:] + (order[:1] if layout.closed and len(order) > 1 else []))
     for behind, ahead in pairs:
         gap_m = layout.ahead_m(behind.s0_m, ahead.s0_m - ahead.profile.length_m)
         if layout.closed and gap_m > layout.length_m - ahead.profile.length_m - behind.profile.length_m:
             gap_m = -1.0   # round the loop the long way: the head is past the tail
-        if gap_m < 0.0:
-            r.fail(data, "trains", "trains", f"trains {behind.train_id} and {ahead.train_id} overlap at the start "
-                                             f"(heads at {behind.s0_m:.3f} and {ahead.s0_m:.3f} m): start them "
+        if gap_m <= 0.0:
+            r.fail(data, "trains", "trains", f"trains {behind.train_id} and {ahead.train_id} overlap or touch at the "
+                                             f"start (heads at {behind.s0_m:.3f} and {ahead.s0_m:.3f} m): start them "
                                              f"further apart")
 
 

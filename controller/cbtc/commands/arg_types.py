@@ -50,6 +50,27 @@ def output_file(text):
     return text
 
 
+# the formats a plot is written in: matplotlib's own, those its Agg backend and its vector backends write
+# (tests/test_cli_inputs.py holds the list to matplotlib's)
+PLOT_FORMATS = ("png", "pdf", "svg", "svgz", "eps", "ps", "jpg", "jpeg", "tif", "tiff", "webp")
+
+
+def plot_file(text):
+    """A plot to write: an output_file whose extension names a format matplotlib writes."""
+    if not text:
+        return text
+    output_file(text)
+    ext = os.path.splitext(text)[1].lstrip(".").lower()
+    if ext not in PLOT_FORMATS:
+        stem = os.path.splitext(text)[0] if ext else text
+        raise argparse.ArgumentTypeError(f"{text}: a plot is written as {', '.join(PLOT_FORMATS)}, not "
+                                         f"{ext or 'a file without an extension'}; give e.g. {stem}.png")
+    return text
+
+
+plot_file.__name__ = "plot file"
+
+
 def train_count(text):
     """How many trains: a whole number >= 1; a list of names is pointed at --train-ids."""
     try:

@@ -83,6 +83,8 @@ def _all_reports(path):
                                           f"one report object per line") from None
     except OSError as exc:
         raise ConfigError(f"cannot read {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(_not_text(path, exc, "the JSON-lines file of reports the run recorded")) from None
     if not reports or any(not isinstance(r, dict) or "odo_mm" not in r for r in reports):
         raise ConfigError(f"{path}: expected JSON lines of reports with an 'odo_mm' field")
     for number, report in enumerate(reports, 1):
@@ -93,6 +95,10 @@ def _all_reports(path):
                               f"entries (docs/protocol.md, version {wire.VERSION}); record the run again with boards "
                               f"of this version, got {tags!r}")
     return reports
+
+
+def _not_text(path, exc, want):
+    return f"{path} is not UTF-8 text ({exc.reason}); give {want}"
 
 
 def _encoder(args):
@@ -124,6 +130,8 @@ def _ips(args):
                                       f"track_y_m") from None
     except OSError as exc:
         raise ConfigError(f"cannot read {args.points}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(_not_text(args.points, exc, "the CSV file of measured points")) from None
     rotation_deg, x_m, y_m, rms_m = align_ips(ips, track)
     print(f"ips:\n  origin_x_m: {x_m:.4f}\n  origin_y_m: {y_m:.4f}\n  rotation_deg: {rotation_deg:.3f}\n"
           f"# rms residual {rms_m * 1000:.1f} mm over {len(ips)} points")

@@ -1,11 +1,15 @@
 """`cbtc demo`: the source paper's scenario, two trains on the square loop (or a scenario file), on the embedded mock
 broker."""
 
+import argparse
 from dataclasses import replace
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import add_paper_or_scenario_args, run_scenario_and_report, with_scenario
+from cbtc.errors import ConfigError
 from cbtc.zone.config import paper_scenario
+
+DEFAULT_PLOT = "cbtc-demo.png"
 
 EXAMPLES = (
     "cbtc demo --laps 1 --plot demo.png",
@@ -23,13 +27,19 @@ def register(sub):
     p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
                    help="position estimator (default: ukf, or the scenario's)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="cbtc-demo.png",
-                   help="distance-time plot (default: cbtc-demo.png; '' for none)")
+    p.add_argument("--plot", metavar="PNG", type=arg_types.plot_file, default=None,
+                   help="distance-time plot (default: cbtc-demo.png, none under --json; '' for none)")
     p.set_defaults(func=run)
 
 
 def run(args):
     from cbtc.layout_files import load_layout
+
+    if args.plot is None:   # the default picture, checked as a given one is (here, where it is known to be wanted)
+        try:
+            args.plot = "" if args.json else arg_types.plot_file(DEFAULT_PLOT)
+        except argparse.ArgumentTypeError as exc:
+            raise ConfigError(f"--plot: {exc}; or give --plot ''") from None
 
     config = with_scenario(args, {"layout": "itb_square", "seed": 0, "estimator": "ukf"}, fixed=("layout",),
                            overrides={"seed": "seed", "estimator": "estimator"})

@@ -28,7 +28,7 @@ def register(sub):
     p.add_argument("--ips-sigma", type=arg_types.number(above=0.0, example="0.02"), default=None, metavar="M",
                    help="IPS noise per axis (m) of both trains, e.g. 0.27 for the paper's IPS (default: the profile's)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="",
+    p.add_argument("--plot", metavar="PNG", type=arg_types.plot_file, default="",
                    help="write the paper's Figure 3 for train A to this PNG")
     p.set_defaults(func=run)
 

@@ -16,7 +16,7 @@ def register(sub):
     verbs.required = True
     show = verbs.add_parser("show", help="print a layout's length, stations, tags and blocks; draw it")
     show.add_argument("layout", help="YAML file or packaged name (see `cbtc layout list`)")
-    show.add_argument("--plot", "--png", dest="plot", metavar="PNG", type=arg_types.output_file,
+    show.add_argument("--plot", "--png", dest="plot", metavar="PNG", type=arg_types.plot_file,
                       help="draw the layout to this PNG (--png: the same, the older name)")
     show.add_argument("--json", action="store_true", help="print the description as JSON")
     show.set_defaults(func=run_show)

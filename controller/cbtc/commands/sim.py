@@ -29,7 +29,7 @@ def register(sub):
                         "(a loop needs more blocks than trains)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
                    help="position estimator (default: ukf, or the scenario's)")
-    p.add_argument("--start-gap", type=arg_types.number(minimum=0.0, example="0.1"), default=None, metavar="M",
+    p.add_argument("--start-gap", type=arg_types.number(above=0.0, example="0.1"), default=None, metavar="M",
                    help="trains start one behind the other, M metres from a tail to the next head (several in one "
                         "fixed block); default: spread evenly along the layout")
     p.add_argument("--fault", action="append", default=[], metavar="NAME[:PARAM=VALUE,...]",
@@ -39,7 +39,7 @@ def register(sub):
     p.add_argument("--record", type=arg_types.output_file, default=None, metavar="FILE",
                    help="write every report the zone accepts as a JSON line (what cbtc calibrate reads)")
     p.add_argument("--json", action="store_true")
-    p.add_argument("--plot", metavar="PNG", type=arg_types.output_file, default="", help="write a distance-time plot")
+    p.add_argument("--plot", metavar="PNG", type=arg_types.plot_file, default="", help="write a distance-time plot")
     p.set_defaults(func=run)
 
 

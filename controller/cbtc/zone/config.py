@@ -87,8 +87,9 @@ def queue_scenario(layout, n_trains, seed=0, duration_s=300.0, start_gap_m=None,
     spacing_m = layout.length_m / n_trains
     need_m = profile.length_m + params.margin_m + 0.05
     if start_gap_m is not None:
-        if not (math.isfinite(start_gap_m) and start_gap_m >= 0.0):
-            raise ConfigError(f"--start-gap {start_gap_m}: give a distance in metres >= 0, such as 0.1")
+        if not (math.isfinite(start_gap_m) and start_gap_m > 0.0):
+            raise ConfigError(f"--start-gap {start_gap_m}: trains would touch; give a distance in metres above 0, "
+                              f"such as 0.1")
         spacing_m = profile.length_m + start_gap_m
         need_m = spacing_m
         if n_trains >= 1 and n_trains * spacing_m > layout.length_m - need_m:

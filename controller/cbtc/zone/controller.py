@@ -339,8 +339,7 @@ class ZoneController:
         self.writer.send(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, rpt_ms, now_s)
 
     def stop_all(self, now_s: float) -> None:
-        """Controller shutdown: command every train that has reported to stop at service rate (speed 0, authority at
-        its braking distance, never beyond the one it holds)."""
+        """Controller shutdown: every train that has reported is commanded to stop at service rate, in its authority."""
         for state in self.trains.values():
             if state.report is not None:
                 beta_mps2 = state.setup.profile.beta_s_mps2
@@ -380,13 +379,14 @@ class ZoneController:
 
     def export_train(self, train_id: str, now_s: float) -> TrainRecord:
         """What another zone needs to take `train_id` over at `now_s`, as a value (cbtc.zone.handover)."""
-        return export_train(self._known(train_id), now_s)
+        return export_train(self.state_of(train_id), now_s)
 
     def import_train(self, record: TrainRecord, now_s: float) -> None:
         """Take over the train of `record` (exported by another zone, or by this zone before a restart) at `now_s`."""
-        import_train(self._known(record.train_id), record, now_s, Command)
+        import_train(self.state_of(record.train_id), record, now_s, Command)
 
-    def _known(self, train_id):
+    def state_of(self, train_id: str):
+        """The zone's own state of `train_id` (a TrainState): for white-box tests and a simulation's fault effects."""
         state = self.trains.get(train_id)
         if state is None:
             raise ConfigError(f"train {train_id!r} is not in this zone; its trains: {', '.join(self.trains)}")
@@ -395,6 +395,6 @@ class ZoneController:
     def retune(self, train_id: str, profile) -> None:
         """Take `profile` for `train_id` from now (an operator's correction, or an experiment's wrong one) and
         start its estimate again from nothing."""
-        state = self.trains[train_id]
+        state = self.state_of(train_id)
         state.setup.profile = profile
         state.relocate(type(state.estimator)(self.layout, profile))
