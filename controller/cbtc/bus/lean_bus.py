@@ -274,8 +274,9 @@ class LeanBus(BusClient):
         code = body[1] if len(body) >= 2 else 255
         if code != 0:
             self.refusal = mp.CONNACK_REASONS.get(code, f"CONNACK code {code}")
-            log.warning("%s: broker %s:%d refused the connection: %s", self.client_id, self.host, self.port,
-                        self.refusal)
+            # on the first connection start() raises with the reason; on a reconnect it is said here
+            (log.warning if self.connects else log.debug)("%s: broker %s:%d refused the connection: %s",
+                                                          self.client_id, self.host, self.port, self.refusal)
             self._close()
             if self.connects:   # refused on a reconnect: keep trying, as after a loss, less and less often
                 self._retry_due_s = time.monotonic() + self._retry_delay_s

@@ -224,8 +224,9 @@ class PahoBus(BusClient):
     def _on_connect(self, client, _userdata, _flags, reason_code, _properties):
         if reason_code.is_failure:
             self.refusal = str(reason_code)
-            log.warning("%s: broker %s:%d refused the connection: %s", self.client_id, self.host, self.port,
-                        reason_code)
+            # on the first connection start() raises with the reason; on a reconnect it is said here
+            (log.warning if self._answered.is_set() else log.debug)(
+                "%s: broker %s:%d refused the connection: %s", self.client_id, self.host, self.port, reason_code)
             self._answered.set()
             return
         sock = client.socket()

@@ -220,3 +220,12 @@ class ReportRecording:
 
     def close(self):
         self._fh.close()
+
+
+def login_source(args, user: str) -> str:
+    """Where `user`'s broker login came from, for the line that says the broker refused it."""
+    if args.credentials:
+        return f"the credentials file {args.credentials} (user {user}): is it the one `cbtc broker config` wrote " \
+               f"for this broker?"
+    from cbtc.bus.reach import LOGIN_OPTIONS
+    return LOGIN_OPTIONS

@@ -9,7 +9,7 @@ as JSON.
 
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, write_json
+from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, login_source, write_json
 from cbtc.live.keys import credentials
 
 EXAMPLES = (
@@ -52,7 +52,8 @@ def run(args):
             user = train_user(spec.train_id)
             username, password = credentials(user, args.username, args.password, args.credentials)
             bus = start_bus(args.mqtt_client, args.broker, user, loop.net,
-                            status_topic=wire.topic_status(spec.train_id), username=username, password=password)
+                            status_topic=wire.topic_status(spec.train_id), username=username, password=password,
+                            login=login_source(args, user))
             rng = np.random.default_rng([args.seed, index])
             offset_ms = int(rng.integers(0, 10_000_000))
             trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus, rng,

@@ -17,6 +17,7 @@ from cbtc.commands.common import (
     add_fleet_args,
     fleet_from_args,
     fmt,
+    login_source,
     write_json,
 )
 from cbtc.live.keys import credentials
@@ -87,7 +88,8 @@ def run(args):
         latency_s = max(spec.profile.ips_latency_s for spec in config.trains)
         modem = IpsModem.open(args.ips_modem, beacons, None, loop.now_s, latency_s)
     bus = start_bus(args.mqtt_client, args.broker, f"zc-{args.zone_id}", loop.net,
-                    status_topic=wire_zc.topic_zone_status(args.zone_id), username=username, password=password)
+                    status_topic=wire_zc.topic_zone_status(args.zone_id), username=username, password=password,
+                    login=login_source(args, "zc"))
     zc = build_zone(config, keys, bus, loop.now_s, zone_id=args.zone_id, seed=seed,
                     report_budget_hz=args.report_budget_hz)
     if modem is not None:
