@@ -7,9 +7,10 @@ of hot methods (a train's state, a report, the filter's states and events, the r
 fields are read the same way, and give the locals of the filter's predict and the speed envelope C double types: the
 same operations in the same order.
 
-Everything else is in pyproject.toml. Each compiled module is optional: with no C compiler, or CBTC_PURE_BUILD=1, or
-an editable install (so that an edited .py is the code that runs), the package installs as plain Python. At run time
-CBTC_PURE=1 loads the .py source of every module instead of its compiled form (cbtc/__init__.py).
+Everything else is in pyproject.toml. The compiled build is asked for: `CBTC_COMPILE=1 pip install .` (minutes on a
+small machine); a plain `pip install .` installs the package as plain Python in seconds, as does an editable install
+(so that an edited .py is the code that runs) or a machine without a C compiler. At run time CBTC_PURE=1 loads the
+.py source of every module instead of its compiled form (cbtc/__init__.py).
 """
 
 import os
@@ -64,10 +65,11 @@ def _firmware_pxds():
 
 
 class OptionalBuildExt(build_ext):
-    """Compiles COMPILED with Cython, or nothing at all (editable install, CBTC_PURE_BUILD=1, no Cython)."""
+    """Compiles COMPILED with Cython when CBTC_COMPILE=1, or nothing at all (not asked, editable install, no
+    Cython)."""
 
     def run(self):
-        if getattr(self, "editable_mode", False) or self.inplace or os.environ.get("CBTC_PURE_BUILD"):
+        if getattr(self, "editable_mode", False) or self.inplace or os.environ.get("CBTC_COMPILE") != "1":
             self.extensions = []
             return
         try:

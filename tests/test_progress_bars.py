@@ -74,3 +74,19 @@ def test_no_bar_when_stdout_is_not_a_terminal():
     out = subprocess.run([sys.executable, "-m", "cbtc.cli", *CASES["sim"]], capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0 and "━" not in out.stdout + out.stderr and "ETA" not in out.stderr
+
+
+def test_a_run_to_a_number_of_laps_counts_laps_and_ends_at_its_whole():
+    """A run that stops at its laps long before its duration cap: its bar counts laps and ends full, not at the
+    share of the cap it had simulated."""
+    from cbtc.layout_files import load_layout
+    from cbtc.sim import progress
+    from cbtc.sim.simulation import Simulation
+    from cbtc.zone.config import paper_scenario
+
+    seen = []
+    config = paper_scenario(load_layout("itb_square"), laps=1, duration_s=300.0)
+    with progress.reporting_to(lambda run, done, total, unit: seen.append((done, total, unit))):
+        Simulation(config).run()
+    assert {unit for _, _, unit in seen[:-1]} == {"laps"} and all(total == 1 for _, total, _ in seen[:-1])
+    assert seen[-1] == (1.0, 1.0, "done")

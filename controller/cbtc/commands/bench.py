@@ -142,12 +142,14 @@ def _machine() -> dict:
     import platform
 
     import cbtc
+    compiled = len(cbtc.compiled_modules())
     return {"cores": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine(),
-            "compiled_modules": len(cbtc.compiled_modules())}
+            "build": "compiled" if compiled else "plain", "compiled_modules": compiled}
 
 
 def _build_words(compiled_modules: int) -> str:
-    return f"{compiled_modules} modules compiled" if compiled_modules else "plain Python"
+    return f"compiled build, {compiled_modules} modules" if compiled_modules else \
+        "plain Python build (CBTC_COMPILE=1 pip install . compiles)"
 
 
 def _emit(args, name, figures, printer):
@@ -260,8 +262,8 @@ def run_build(args):
 
 def _print_build(row):
     if not row["compiled_modules"]:
-        print("this install is plain Python (an editable install, or no C compiler at install): nothing to compare; "
-              "`pip install .` with a C compiler builds the compiled modules")
+        print("this install is plain Python (the default, an editable install, or no C compiler at install): nothing "
+              "to compare; `CBTC_COMPILE=1 pip install .` with a C compiler builds the compiled modules")
         return
     print(f"compiled build ({row['compiled_modules']} modules) beside its Python source (CBTC_PURE=1):")
     print(f"  simulation, {row['sim_trains']} trains on {row['sim_layout']}: {row['sim_real_time_factor']}x real time, "

@@ -84,14 +84,15 @@ def simulation_bar(label: str, runs: int, show: bool):
             return
         state = {"run": None, "finished": -1}
 
-        def sink(run, done_s, total_s):
+        def sink(run, done, total, unit):
             current = state["run"]() if state["run"] is not None else None
             if current is not run:   # a new run: the one before it is complete
                 state["run"] = weakref.ref(run)
                 state["finished"] += 1
-            share = min(1.0, done_s / total_s) if total_s > 0 else 1.0
-            text = f"{done_s:.0f}/{total_s:.0f} s simulated" if runs == 1 else \
-                f"run {min(runs, state['finished'] + 1)}/{runs}"
+            share = min(1.0, done / total) if total > 0 else 1.0
+            words = {"s": "s simulated", "laps": "laps"}
+            text = f"{done:.0f}/{total:.0f} {words[unit]}" if runs == 1 and unit in words else \
+                "done" if runs == 1 else f"run {min(runs, state['finished'] + 1)}/{runs}"
             update(state["finished"] + share, text)
 
         with progress.reporting_to(sink):

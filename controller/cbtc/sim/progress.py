@@ -11,16 +11,17 @@ from contextvars import ContextVar
 _SINK = ContextVar("cbtc_sim_progress", default=None)
 
 
-def report(run, done_s: float, total_s: float) -> None:
-    """Simulation `run` (any object naming the run) has simulated `done_s` of its `total_s` seconds."""
+def report(run, done: float, total: float, unit: str = "s") -> None:
+    """Simulation `run` (any object naming the run) has made `done` of its `total`: simulated seconds, laps, or
+    ("done") the whole of it."""
     sink = _SINK.get()
     if sink is not None:
-        sink(run, done_s, total_s)
+        sink(run, done, total, unit)
 
 
 @contextmanager
 def reporting_to(sink):
-    """Within the block, simulations report `sink(run, done_s, total_s)` about every simulated second."""
+    """Within the block, simulations report `sink(run, done, total, unit)` about every simulated second."""
     token = _SINK.set(sink)
     try:
         yield

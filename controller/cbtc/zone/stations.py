@@ -26,12 +26,15 @@ class StationStops:
         if not stops:
             return None
         est = state.newest_estimate()
-        if state.next_stop is None:
+        first = state.next_stop is None
+        if first:
             state.next_stop = self.next_station(est.s_m, stops, at_station_ok=True)
         if state.next_stop == NO_MORE_STOPS:
             return None
         station = self.layout.station(state.next_stop)
         to_stop_m = self._signed_ahead(est.s_m, station.s_m)
+        if first and to_stop_m < -station.window_m:
+            state.leaving = station.name   # it starts just past the station: no stop there this time round
         # standing: no speed; or slower than the board's creep speed and braked (no drive: it stops within a loop)
         # or with no count since the report before (the board's speed decays for a while after its last edge;
         # waiting for it to reach 0 only delays the dwell)
@@ -63,6 +66,7 @@ class StationStops:
             state.stop_overruns += 1
             log.warning("train %s overran station %s by %.3f m", state.train_id, station.name, -to_stop_m)
             state.next_stop = self.next_station(station.s_m + 0.01, stops)
+            state.leaving = station.name   # counted once: not again until the train has left it behind
             return None
         return to_stop_m
 
