@@ -12,6 +12,7 @@ import sys
 from importlib import metadata
 
 from cbtc.errors import CbtcError
+from cbtc.run_clock import RepeatLimit, RunClockFormatter
 
 COMMANDS = (
     "demo",
@@ -63,9 +64,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    # each line timed (wall clock, ms): a log read after a run tells what happened when
-    logging.basicConfig(level=logging.WARNING, format="%(asctime)s.%(msecs)03d %(name)s: %(levelname)s: %(message)s",
-                        datefmt="%H:%M:%S")
+    # each line timed (the wall clock to the ms, or a simulation's own): a log read after a run tells what happened
+    # when; a warning said again and again is held back and counted (cbtc.run_clock)
+    handler = logging.StreamHandler()
+    handler.setFormatter(RunClockFormatter("%(asctime)s %(name)s: %(levelname)s: %(message)s"))
+    handler.addFilter(RepeatLimit())
+    logging.basicConfig(level=logging.WARNING, handlers=[handler])
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
