@@ -17,7 +17,7 @@ from cbtc.cli import build_parser, main
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # a user's own things: their board's port, their broker's address, their files, placeholders
 USERS_OWN = re.compile(r"HOST|PORT\b|FILE\b|<|\.\.\.|/dev/tty|192\.168\.|my_table|run\.jsonl|points\.csv|"
-                       r"keys\.json --|credentials\.json")
+                       r"keys\.json --|credentials\.json|--setup ")   # --setup: the live run (tests/test_live_setup.py)
 LIVE_URL = "mqtt://127.0.0.1:1883"
 
 
@@ -90,6 +90,7 @@ def test_a_command_that_needs_your_board_or_files_is_still_a_valid_command_line(
     (tmp_path / "broker").mkdir()
     (tmp_path / "broker" / "credentials.json").write_text("{}")
     (tmp_path / "my_table.yaml").write_text("layout: itb_square\ntrains:\n  - {id: A, start: main}\n")
+    assert main(["setup", "--layout", "itb_square", "--out", str(tmp_path / "live")]) == 0   # the live run's folder
     argv = shlex.split(re.sub(r"<[^>]*>", "00112233445566778899aabbccddeeff",
                               line.replace("HOST:PORT", "127.0.0.1:1883").replace("...", "")))
     build_parser().parse_args(argv[1:])

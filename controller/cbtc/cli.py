@@ -25,7 +25,7 @@ COMMANDS = (
     "guard",
     "flash",
     "calibrate",
-    "zone", "trains", "keys", "broker", "bench", "fuzz", "campaign",
+    "setup", "zone", "trains", "keys", "broker", "bench", "fuzz", "campaign",
 )
 
 

@@ -230,3 +230,31 @@ def fleet_scenario(text):
 
 
 fleet_scenario.__name__ = "scenario"
+
+
+def setup_folder(text):
+    """A folder `cbtc setup` wrote: (folder, its live.json's values, checked and with paths made whole)."""
+    import json
+    path = os.path.join(text, "live.json")
+    if not os.path.isfile(path):
+        raise argparse.ArgumentTypeError(f"{text} holds no live.json; make it with `cbtc setup --out {text}`")
+    try:
+        with open(path) as fh:
+            values = json.load(fh)
+        fleet = ("scenario",) if "scenario" in values else ("layout", "train_ids")
+        values = {k: values[k] for k in ("broker", "keys", "credentials", *fleet)}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise argparse.ArgumentTypeError(f"{path} is not a setup `cbtc setup` wrote ({exc}); make it again with "
+                                         f"`cbtc setup --out {text} --force`") from None
+    broker_url(values["broker"])
+    for name in ("keys", "credentials"):
+        values[name] = input_file(os.path.join(text, values[name]))
+    if "scenario" in values:
+        values["scenario"] = scenario(values["scenario"])
+    else:
+        layout(values["layout"])
+        values["train_ids"] = train_ids(",".join(values["train_ids"]))
+    return text, values
+
+
+setup_folder.__name__ = "setup folder"

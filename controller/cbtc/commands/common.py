@@ -101,11 +101,16 @@ def fmt(value, digits=2) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
-def add_connection_args(p, broker_default=None) -> None:
-    """--broker, --username, --password, --credentials: how a live command reaches the broker."""
-    p.add_argument("--broker", type=arg_types.broker_url, required=broker_default is None, default=broker_default,
-                   metavar="URL",
-                   help="MQTT broker, mqtt://HOST:PORT")
+def add_connection_args(p, broker_default=None, setup: bool = False) -> None:
+    """--broker, --username, --password, --credentials: how a live command reaches the broker; with `setup`, also
+    --setup DIR, which gives them (and the fleet) from `cbtc setup`'s live.json (apply_setup)."""
+    if setup:
+        p.add_argument("--setup", type=arg_types.setup_folder, default=None, metavar="DIR",
+                       help="a folder from `cbtc setup`: the broker, layout or scenario, trains, keys and "
+                            "credentials of the run, as the other side reads them")
+    p.add_argument("--broker", type=arg_types.broker_url, required=broker_default is None and not setup,
+                   default=broker_default, metavar="URL",
+                   help="MQTT broker, mqtt://HOST:PORT" + (" (or --setup DIR)" if setup else ""))
     p.add_argument("--username", default=None, help=f"broker user name (default: ${ENV_USERNAME})")
     p.add_argument("--password", default=None, help=f"broker password (default: ${ENV_PASSWORD})")
     p.add_argument("--credentials", type=arg_types.input_file, default=None, metavar="FILE",
@@ -229,3 +234,29 @@ def login_source(args, user: str) -> str:
                f"for this broker?"
     from cbtc.bus.reach import LOGIN_OPTIONS
     return LOGIN_OPTIONS
+
+
+def apply_setup(args) -> None:
+    """Fill the connection and fleet options from `args.setup`'s live.json; one also given on the command line must
+    say the same, or is refused naming both. Without --setup, --broker is required."""
+    setup = args.setup
+    if setup is None:
+        if args.broker is None:
+            raise ConfigError("--broker: give the broker, mqtt://HOST:PORT, or --setup DIR from `cbtc setup`")
+        return
+    folder, values = setup
+    given = {"broker": args.broker, "credentials": args.credentials, "keys": args.keys, "layout": args.layout,
+             "train_ids": args.train_ids, "scenario": None if isinstance(args.scenario, str) else args.scenario}
+    if args.train_ids is not None and "train_ids" in values and set(args.train_ids) <= set(values["train_ids"]):
+        values = {**values, "train_ids": args.train_ids}   # some of the setup's trains (one alone, to calibrate)
+        given["train_ids"] = None
+    for name, value in given.items():
+        if value is not None and name in values:
+            raise ConfigError(f"--{name.replace('_', '-')}: --setup {folder} gives it; leave it out (or run without "
+                              f"--setup)")
+    args.broker = values["broker"]
+    args.credentials, args.keys = values["credentials"], values["keys"]
+    if "scenario" in values:
+        args.scenario = values["scenario"]
+    else:
+        args.layout, args.train_ids = values["layout"], values["train_ids"]

@@ -9,7 +9,14 @@ as JSON.
 
 
 from cbtc.commands import arg_types
-from cbtc.commands.common import add_connection_args, add_fleet_args, fleet_from_args, login_source, write_json
+from cbtc.commands.common import (
+    add_connection_args,
+    add_fleet_args,
+    apply_setup,
+    fleet_from_args,
+    login_source,
+    write_json,
+)
 from cbtc.live.keys import credentials
 
 EXAMPLES = (
@@ -19,7 +26,7 @@ EXAMPLES = (
 
 def register(sub):
     p = sub.add_parser("trains", help="run virtual trains against a real MQTT broker", description=__doc__)
-    add_connection_args(p)
+    add_connection_args(p, setup=True)
     add_fleet_args(p)
     p.add_argument("--seed", type=arg_types.seed, default=0,
                    help="seed of the sensor noise and board clocks (default 0)")
@@ -43,6 +50,7 @@ def run(args):
     from cbtc.sim.truth import TruthMonitor
     from cbtc.sim.virtual_train import VirtualTrain
 
+    apply_setup(args)
     config, keys = fleet_from_args(args, seed=args.seed)
     layout = config.layout
     loop = LiveLoop()

@@ -15,6 +15,7 @@ from cbtc.commands.common import (
     ReportRecording,
     add_connection_args,
     add_fleet_args,
+    apply_setup,
     fleet_from_args,
     fmt,
     login_source,
@@ -33,7 +34,7 @@ EXAMPLES = (
 
 def register(sub):
     p = sub.add_parser("zone", help="run the zone controller against a real MQTT broker", description=__doc__)
-    add_connection_args(p)
+    add_connection_args(p, setup=True)
     add_fleet_args(p)
     p.add_argument("--zone-id", default="zc1", help="zone id in cbtc/zc/<id>/status (default zc1)")
     p.add_argument("--policy", choices=policy_names(), default=None,
@@ -73,6 +74,7 @@ def run(args):
     from cbtc.protocol import wire_zc
     from cbtc.zone.factory import build_zone
 
+    apply_setup(args)
     seed = secrets.randbits(31) if args.seed is None else args.seed
     config, keys = fleet_from_args(args)
     layout = config.layout
