@@ -85,3 +85,10 @@ def test_a_scenario_that_cannot_make_sense_is_refused_with_the_fix(capsys, tmp_p
     path = tmp_path / "s.yaml"
     path.write_text(SCENARIO.format(layout=layout, trains=trains))
     _refused(capsys, ["sim", "--scenario", str(path)], named)
+
+
+def test_the_scenario_list_says_each_first_sentence_whole(capsys):
+    assert main(["scenario", "list"]) == 0
+    out = capsys.readouterr().out
+    assert all(line.count("`") % 2 == 0 for line in out.splitlines()), out   # no `command` cut across lines
+    assert "300 s." in out and "five laps." in out

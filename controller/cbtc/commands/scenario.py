@@ -58,10 +58,30 @@ def run_show(args):
 
 
 def run_list(_args):
+    import textwrap
+
     from cbtc.scenario_files import resolve_scenario, scenario_names
 
     for name in scenario_names():
+        words = []
         with open(resolve_scenario(name), encoding="utf-8") as fh:
-            first = fh.readline().lstrip("# ").strip()
-        print(f"{name:20s} {first}")
+            for line in fh:   # the comment the file opens with, whole: its sentences are not cut
+                if not line.startswith("#"):
+                    break
+                words.append(line.lstrip("# ").strip())
+        text = _first_sentence(" ".join(w for w in words if w))
+        # a `command` in it is kept on one line: its spaces do not break
+        kept = "`".join(part.replace(" ", "\u00a0") if i % 2 else part for i, part in enumerate(text.split("`")))
+        print(textwrap.fill(kept, 118, initial_indent=f"{name:20s} ", subsequent_indent=" " * 21,
+                            break_on_hyphens=False).replace("\u00a0", " "))
     return 0
+
+
+def _first_sentence(text: str) -> str:
+    """`text` to the end of its first sentence (a full stop outside `code` followed by a space, or its end)."""
+    ticks = 0
+    for i, ch in enumerate(text):
+        ticks += ch == "`"
+        if ch == "." and ticks % 2 == 0 and text[i + 1:i + 2] in (" ", ""):
+            return text[:i + 1]
+    return text

@@ -214,13 +214,23 @@ def status_table(view, broker_up):
             v_mps = 0.0   # standing: not "-0.00"
         cells = (row.train_id, fmt(row.s_m), fmt(v_mps), fmt(row.limit_s_m), data,
                  row.mode or "-", row.next_stop or "-", row.limited_by or "-", ",".join(notes) or "-")
-        lines.append(" ".join(_cell(str(value), width, align)
-                              for value, (_name, width, align) in zip(cells, STATUS_COLUMNS)).rstrip())
+        lines += _row(cells)
     return lines
 
 
+def _row(cells):
+    """A row's lines: a cell wider than its column wraps at its spaces (or its commas) onto lines below, never cut."""
+    import textwrap
+
+    wrapped = [textwrap.wrap(str(value).replace(",", ", "), width, break_on_hyphens=False) or [""]
+               for value, (_name, width, _align) in zip(cells, STATUS_COLUMNS)]
+    wrapped = [[part.replace(", ", ",") for part in parts] for parts in wrapped]
+    return [" ".join(_cell(parts[i] if i < len(parts) else "", width, align)
+                     for parts, (_name, width, align) in zip(wrapped, STATUS_COLUMNS)).rstrip()
+            for i in range(max(len(parts) for parts in wrapped))]
+
+
 def _cell(text, width, align):
-    text = text if len(text) <= width else text[:width - 1] + "~"
     return text.ljust(width) if align == "<" else text.rjust(width)
 
 
