@@ -104,17 +104,17 @@ def run_systems(base: ScenarioConfig, blocks=None, code_ber=0.0):
     the scenario's or the layout's own), whose speed codes reach the trains as telegrams with bit-error rate
     `code_ber`; returns (figures, recorders)."""
     results, recorders = {}, {}
-    for policy in (MOVING_BLOCK, FIXED_BLOCK):
-        options = {}
-        if policy == FIXED_BLOCK:
-            options = {"blocks": blocks or base.policy_options.get("blocks"), "code_ber": code_ber}
+    systems = ((MOVING_BLOCK, {}),
+               (FIXED_BLOCK, {"blocks": blocks or base.policy_options.get("blocks"), "code_ber": code_ber}))
+    for policy, options in systems:
         sim = Simulation(replace(base, policy=policy, policy_options=options), keep_samples=True)
-        if policy == FIXED_BLOCK:
+        if sim.policy.needs_spans:   # it reads track circuits: they see every train's true extent
             sim.policy.track_circuits = _truth_spans(sim)
         recorders[policy] = sim.run()
         results[policy] = system_figures(recorders[policy])
-        if policy == FIXED_BLOCK:
-            results[policy]["speed_code_telegrams"] = dict(sim.policy.codes.counts)
+        codes = getattr(sim.policy, "codes", None)   # the speed codes a signalled policy sends as telegrams
+        if codes is not None:
+            results[policy]["speed_code_telegrams"] = dict(codes.counts)
     return results, recorders
 
 

@@ -37,7 +37,8 @@ class Estimators:
                 state.encoder_failed = True
                 state.encoder_failures += 1
                 self.refusals.note(state.train_id, "encoder failed", f"{', '.join(sorted(faults))}: no authority "
-                                   f"until it reports healthy and is located again; every train held", recv_s)
+                                   f"until it reports healthy and is located again; meanwhile every train is held (it "
+                                   f"brakes to a stop within the authority it holds)", recv_s)
             self.relocate_wheel_lost(state)
             state.estimator.distrust_wheel()   # what the wheel read before says nothing of how it reads now
         else:
