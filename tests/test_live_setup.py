@@ -65,3 +65,32 @@ def test_setup_refuses_what_it_would_contradict(tmp_path, capsys):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert named in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+@pytest.mark.mosquitto
+def test_a_zone_and_trains_with_different_keys_each_end_with_one_line_naming_it(tmp_path):
+    """The zone runs with keys of its own, the trains with the setup's: no report is authenticated, no command is
+    taken, and each says so in one line at its end, with the fix; the zone exits 1."""
+    port = free_port()
+    as_root = ["--run-as", "root"] if hasattr(os, "geteuid") and os.geteuid() == 0 else []
+    assert main(["setup", "--layout", "itb_square", "--port", str(port), "--out", str(tmp_path / "live"),
+                 *as_root]) == 0
+    assert main(["keys", "new", "--train-ids", "A,B", "--out", str(tmp_path / "other.json")]) == 0
+    mosquitto = MosquittoProcess(str(tmp_path / "live" / "mosquitto.conf"), port).start()
+    try:
+        zone = subprocess.Popen(_cbtc(["cbtc", "zone", "--broker", f"mqtt://127.0.0.1:{port}", "--layout",
+                                       "itb_square", "--train-ids", "A,B", "--keys", str(tmp_path / "other.json"),
+                                       "--credentials", str(tmp_path / "live" / "credentials.json"),
+                                       "--duration", "6", "--quiet", "--clear-track", "all"]),
+                                stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        trains = subprocess.run(_cbtc(["cbtc", "trains", "--setup", str(tmp_path / "live"), "--duration", "4",
+                                       "--quiet"]), capture_output=True, text=True, timeout=60)
+        _, zone_err = zone.communicate(timeout=60)
+    finally:
+        mosquitto.kill()
+    assert zone.returncode == 1 and trains.returncode == 0, (zone_err, trains.stderr)   # trains alone: no error
+    zone_line = [line for line in zone_err.splitlines() if "error" in line]
+    assert len(zone_line) == 1 and "trains A, B reported, but never with a report this zone could authenticate" \
+        in zone_line[0] and str(tmp_path / "other.json") in zone_line[0], zone_err
+    trains_line = [line for line in trains.stderr.splitlines() if "warning" in line]
+    assert len(trains_line) == 1 and "no train took a command (A, B)" in trains_line[0], trains.stderr

@@ -7,6 +7,7 @@ the end (Ctrl-C or --duration) the truth-based figures (distance, collisions, re
 as JSON.
 """
 
+import sys
 
 from cbtc.commands import arg_types
 from cbtc.commands.common import (
@@ -90,6 +91,12 @@ def run(args):
         write_json(args.summary_json, summary)
     distances = ", ".join("%s %.2f m" % (t["train"], t["distance_m"]) for t in summary["trains"])
     print(f"trains: stopped; collisions {summary['collisions']}, distance {distances}", flush=True)
+    silent = [t["train"] for t in summary["trains"] if t["cseq"] <= 0]
+    if len(silent) == len(summary["trains"]):
+        # not one command taken: no zone (a run of the trains alone is no error), or a zone with other keys
+        print(f"cbtc trains: warning: no train took a command ({', '.join(silent)}): is `cbtc zone` running on this "
+              f"broker with these trains' keys ({notes.key_source})? Start both from one `cbtc setup` folder "
+              f"(--setup DIR)", file=sys.stderr)
     return 0 if summary["collisions"] == 0 else 1
 
 

@@ -7,6 +7,7 @@ publishes its retained `offline` status and leaves.
 """
 
 import secrets
+import sys
 import textwrap
 
 from cbtc.authority.policy import policy_names
@@ -139,7 +140,20 @@ def _shut_down(args, zc, bus, loop, cycle, modem, recording):
     if args.summary_json:
         write_json(args.summary_json, summary)
     print(f"zone {args.zone_id}: stopped every train and went offline after {summary['cycles']} cycles", flush=True)
-    return 0
+    return _unauthenticated(zc, summary)
+
+
+def _unauthenticated(zc, summary) -> int:
+    """1, with one line, when a train whose reports came never sent one the zone could authenticate (its key is
+    not the zone's); 0 otherwise. The zone ran on regardless: a wrong key may be a stranger's, not a board's."""
+    wrong = [t for t, row in summary["trains"].items()
+             if row["data_age_s"] is None and summary["refusals"].get(f"{t}/wrong key")]
+    if not wrong:
+        return 0
+    print(f"cbtc zone: error: train{'s' if len(wrong) > 1 else ''} {', '.join(wrong)} reported, but never with a "
+          f"report this zone could authenticate: its keys ({zc.key_source}) are not the boards'; give both the same "
+          f"keys (one `cbtc setup` folder, --setup DIR, or the same --keys FILE)", file=sys.stderr)
+    return 1
 
 
 def _tail_beacons(args, config):
