@@ -140,3 +140,23 @@ def test_the_zone_and_a_simulation_run_without_scipy_filterpy_or_matplotlib():
             f"print([m for m in {heavy} if m in sys.modules])")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr
+
+
+def test_every_command_has_examples_and_every_flag_says_what_it_does():
+    parser = build_parser()
+    silent = [(" ".join(words), a.option_strings[0]) for words, a in _options() if not a.help]
+    flags = [(" ".join(words), a.option_strings[0]) for words, a in _all_flags(parser) if not a.help]
+    assert not silent and not flags, silent + flags
+    commands = parser._subparsers._group_actions[0].choices
+    assert all(sub.epilog and sub.epilog.startswith("examples:") for sub in commands.values()), \
+        [name for name, sub in commands.items() if not sub.epilog]
+
+
+def _all_flags(parser, prefix=()):
+    """Every option of every command, values or not (--json and other switches too)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _all_flags(sub, prefix + (name,))
+        elif action.option_strings and action.dest != "help" and action.help != argparse.SUPPRESS:
+            yield prefix, action

@@ -19,12 +19,13 @@ def register(sub):
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
     image = verbs.add_parser("image", help="the 16 data bytes to write into each tag of a layout")
-    image.add_argument("--layout", type=arg_types.layout, default="itb_square")
-    image.add_argument("--json", action="store_true")
+    image.add_argument("--layout", type=arg_types.layout, default="itb_square",
+                       help="layout whose tags to write telegrams for (default itb_square)")
+    image.add_argument("--json", action="store_true", help="print the telegrams as JSON")
     image.set_defaults(func=run_image)
     read = verbs.add_parser("read", help="decode a tag's data as a board reports it (32 hex digits)")
     read.add_argument("data", metavar="HEX")
-    read.add_argument("--json", action="store_true")
+    read.add_argument("--json", action="store_true", help="print the decoded telegram as JSON")
     read.set_defaults(func=run_read)
 
 

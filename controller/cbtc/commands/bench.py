@@ -53,7 +53,7 @@ def _latency_parser(bench_sub):
                           "behind each other for the GIL as 20 boards never would")
     lat.add_argument("--layout", type=arg_types.layout, default=None,
                      help="layout (default: a LEGO oval long enough for the trains)")
-    lat.add_argument("--seed", type=arg_types.seed, default=0)
+    lat.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     add_mqtt_client_arg(lat)
     lat.add_argument("--json", action="store_true", help="print the figures as JSON")
     lat.set_defaults(func=run_latency)
@@ -69,19 +69,19 @@ def _sim_parsers(bench_sub):
     sim.add_argument("--runs", type=arg_types.whole(1, 100), default=3,
                      help="runs of each case and of its reference, in turn (default 3): the fastest of each is "
                           "the figure, as timeit takes it")
-    sim.add_argument("--seed", type=arg_types.seed, default=0)
+    sim.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     sim.set_defaults(func=run_sim)
     fusion = _speed_parser(bench_sub, "fusion", "our filter's train-update beside filterpy's, on the same inputs")
     fusion.add_argument("--trains", type=arg_types.train_count, default=50, help="filters (default 50)")
     fusion.add_argument("--steps", type=arg_types.whole(1), default=40, help="updates each (default 40)")
-    fusion.add_argument("--seed", type=arg_types.seed, default=0)
+    fusion.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     fusion.set_defaults(func=run_fusion)
     ctl = _speed_parser(bench_sub, "controller", "a zone's time per report, beside decoding the reports alone")
     ctl.add_argument("--trains", type=arg_types.train_count, default=None,
                      help="trains (default: 11 and 50); up to 11 on lego_oval, more on lego_long_oval")
     ctl.add_argument("--duration", type=arg_types.seconds, default=10.0,
                      help="simulated seconds of reports replayed (default 10)")
-    ctl.add_argument("--seed", type=arg_types.seed, default=0)
+    ctl.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     ctl.set_defaults(func=run_controller)
 
 
@@ -90,7 +90,7 @@ def _other_parsers(bench_sub):
     mem.add_argument("--trains", type=arg_types.train_count, default=6, help="trains on lego_oval (default 6)")
     mem.add_argument("--duration", type=arg_types.seconds, default=600.0,
                      help="simulated seconds (default 600; 3600 for the hour itself)")
-    mem.add_argument("--seed", type=arg_types.seed, default=0)
+    mem.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     mem.set_defaults(func=run_memory)
     every = _speed_parser(bench_sub, "all", "sim, fusion, controller, memory and startup in one run, one report")
     every.add_argument("--duration", type=arg_types.seconds, default=30.0,
@@ -102,12 +102,12 @@ def _other_parsers(bench_sub):
     every.add_argument("--runs", type=arg_types.whole(1, 100), default=3,
                        help="runs of each sim case and of its reference, in turn (default 3): the fastest of "
                             "each is the figure, as timeit takes it")
-    every.add_argument("--seed", type=arg_types.seed, default=0)
+    every.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     every.set_defaults(func=run_all)
     build = _speed_parser(bench_sub, "build", "the compiled build beside its Python source (CBTC_PURE=1)")
     build.add_argument("--duration", type=arg_types.seconds, default=10.0,
                        help="simulated seconds of the simulation and of the zone's replay (default 10)")
-    build.add_argument("--seed", type=arg_types.seed, default=0)
+    build.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     build.set_defaults(func=run_build)
     start = _speed_parser(bench_sub, "startup", "wall time and memory of commands that do little, beside python")
     start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")

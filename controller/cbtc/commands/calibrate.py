@@ -11,6 +11,11 @@ from cbtc.errors import ConfigError
 from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 
+EXAMPLES = (
+    "cbtc calibrate encoder --reports run.jsonl --distance-m 3.20",
+    "cbtc calibrate tags --reports run.jsonl --loop-m 6.81 --distance-m 13.62",
+)
+
 
 def register(subparsers):
     p = subparsers.add_parser("calibrate", help="encoder scale, IPS frame, RFID tag positions from recorded data",

@@ -55,7 +55,7 @@ def register(sub):
                    metavar="P",
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
     p.add_argument("--seed", type=arg_types.seed, default=None, help="random seed (default: 0, or the scenario's)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON (no table, no bar)")
     p.add_argument("--plot", metavar="PNG", type=arg_types.plot_file, default="",
                    help="distance-time plot of both systems (the paper's Figure 4)")
     p.set_defaults(func=run)

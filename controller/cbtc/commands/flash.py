@@ -5,6 +5,11 @@ import os
 from cbtc.commands import arg_types
 from cbtc.live.keys import ENV_PASSWORD, ENV_USERNAME, credentials, train_keys
 
+EXAMPLES = (
+    "cbtc flash --port /dev/ttyUSB0 --train A --keys live/keys.json --credentials live/credentials.json "
+    "--broker mqtt://192.168.1.10:1883 --wifi-ssid lego-cbtc",
+)
+
 
 def register(subparsers):
     p = subparsers.add_parser("flash", help="copy the firmware to a train board with mpremote and verify it boots",

@@ -15,6 +15,11 @@ from cbtc.commands.progress_bar import bar, shown
 MAX_PAYLOADS = 1_000_000
 
 
+EXAMPLES = (
+    "cbtc fuzz --payloads 2000 --broker mqtt://HOST:PORT",
+)
+
+
 def register(sub):
     p = sub.add_parser("fuzz", help="throw bad payloads at a live zone and trains over Mosquitto, check nothing got "
                                     "through", description=__doc__ + "\n" + module_doc("cbtc.experiments.fuzz"),

@@ -38,7 +38,7 @@ def register(sub):
                                     for name, (_what, params) in sorted(faults.FAULTS.items())))
     p.add_argument("--record", type=arg_types.output_file, default=None, metavar="FILE",
                    help="write every report the zone accepts as a JSON line (what cbtc calibrate reads)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the result as JSON (no table, no bar)")
     p.add_argument("--plot", metavar="PNG", type=arg_types.plot_file, default="", help="write a distance-time plot")
     p.set_defaults(func=run)
 
