@@ -237,8 +237,9 @@ def login_source(args, user: str) -> str:
 
 
 def apply_setup(args) -> None:
-    """Fill the connection and fleet options from `args.setup`'s live.json; one also given on the command line must
-    say the same, or is refused naming both. Without --setup, --broker is required."""
+    """Fill the connection and fleet options from `args.setup`'s live.json; one the folder gives that is also on the
+    command line is refused, naming it (but --train-ids naming some of the folder's trains). Without --setup,
+    --broker is required."""
     setup = args.setup
     if setup is None:
         if args.broker is None:

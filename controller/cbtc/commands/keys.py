@@ -4,12 +4,11 @@
 with the key of the train it is addressed to. Keep the file private.
 """
 
-import json
 import os
 
 from cbtc.commands import arg_types
 from cbtc.errors import ConfigError
-from cbtc.live.keys import new_keys
+from cbtc.live.keys import write_new_keys
 
 EXAMPLES = (
     "cbtc keys new --train-ids A,B --out keys.json",
@@ -34,9 +33,6 @@ def run_new(args):
     ids = args.train_ids
     if os.path.exists(args.out) and not args.force:
         raise ConfigError(f"{args.out} exists: its keys may be on boards already; use --force to replace them")
-    fd = os.open(args.out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(new_keys(ids), fh, indent=2, sort_keys=True)
-        fh.write("\n")
+    write_new_keys(args.out, ids)
     print(f"wrote keys of {len(ids)} trains to {args.out} (owner-only); pass it as --keys to cbtc zone and cbtc trains")
     return 0

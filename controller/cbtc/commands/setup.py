@@ -44,7 +44,7 @@ def register(sub):
 
 def run(args):
     from cbtc.bus.broker_config import write_config
-    from cbtc.live.keys import new_keys
+    from cbtc.live.keys import write_new_keys
 
     if args.scenario is not None and (args.layout is not None or args.train_ids is not None):
         raise ConfigError("--scenario sets the layout and the trains: leave --layout and --train-ids out, or give "
@@ -57,18 +57,13 @@ def run(args):
                           f"or another --out")
     if args.scenario is not None:
         ids = [spec.train_id for spec in args.scenario.trains]
-        fleet = {"scenario": os.path.abspath(args.scenario.source) if os.path.exists(args.scenario.source)
-                 else args.scenario.source}
+        fleet = {"scenario": _named(args.scenario.source)}
     else:
         ids = args.train_ids or ["A", "B"]
-        fleet = {"layout": os.path.abspath(args.layout) if os.path.exists(args.layout) else args.layout,
-                 "train_ids": ids}
+        fleet = {"layout": _named(args.layout), "train_ids": ids}
     paths = write_config(args.out, ids, port=args.port, host=args.host, run_as=args.run_as)
     keys_path = os.path.join(args.out, "keys.json")
-    fd = os.open(keys_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(new_keys(ids), fh, indent=2, sort_keys=True)
-        fh.write("\n")
+    write_new_keys(keys_path, ids)
     host = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
     setup = {"broker": f"mqtt://{host}:{args.port}", **fleet, "keys": "keys.json", "credentials": "credentials.json"}
     with open(setup_path, "w") as fh:
@@ -78,3 +73,8 @@ def run(args):
     print(f"run it in three terminals:\n  mosquitto -c {paths['mosquitto.conf']}\n  cbtc zone --setup {args.out}\n"
           f"  cbtc trains --setup {args.out}")
     return 0
+
+
+def _named(path_or_name: str) -> str:
+    """A file as its whole path (live.json is read from other folders), a packaged name as it is."""
+    return os.path.abspath(path_or_name) if os.path.exists(path_or_name) else path_or_name

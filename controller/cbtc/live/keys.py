@@ -20,6 +20,14 @@ def new_keys(train_ids) -> dict:
     return {wire.check_train_id(t): secrets.token_bytes(KEY_BYTES).hex() for t in train_ids}
 
 
+def write_new_keys(path: str, train_ids) -> None:
+    """Write new_keys(train_ids) to `path` as JSON, readable by its owner only (the keys sign every command)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w") as fh:
+        json.dump(new_keys(train_ids), fh, indent=2, sort_keys=True)
+        fh.write("\n")
+
+
 def load_keys(path: str) -> dict:
     """{train_id: key bytes} from a JSON keys file {train_id: hex key}."""
     try:
