@@ -187,18 +187,18 @@ class Simulation:
             while t_s < config.duration_s:
                 t_s = min(config.duration_s, t_s + step_s)
                 self.scheduler.run_until(t_s)
-                self._report_progress(t_s)
-                if config.laps is not None and all(self.recorder.laps(i) >= config.laps
-                                                   for i in range(len(self.trains))):
+                if self._report_progress(t_s):
                     break
         progress.report(self, 1.0, 1.0, "done")   # a run that ends early (its laps made) ends its bar at 100 %
         return self.recorder
 
-    def _report_progress(self, t_s):
-        """Simulated seconds of the duration, or, for a run to a number of laps, the laps the slowest train made."""
+    def _report_progress(self, t_s) -> bool:
+        """Report simulated seconds of the duration, or, for a run to a number of laps, the laps the slowest train
+        made; True once every train has made them (the run is done)."""
         laps = self.config.laps
         if laps is None:
             progress.report(self, t_s, self.config.duration_s)
-        else:
-            made = min((self.recorder.laps(i) for i in range(len(self.trains))), default=laps)
-            progress.report(self, min(made, laps), laps, "laps")
+            return False
+        made = min((self.recorder.laps(i) for i in range(len(self.trains))), default=laps)
+        progress.report(self, min(made, laps), laps, "laps")
+        return made >= laps
