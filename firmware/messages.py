@@ -13,6 +13,9 @@ A field is (name, kind, bounds, unit, meaning); the kinds:
   "names"  a list of strings, each one of bounds
   "list"   null or a list of integers, bounds a flat (name, lo, hi) spec (wire.check_ints); "list?" may be absent
   "tags"   a list of at most wire.MAX_TAGS tag reads, bounds the flat spec of their integers (wire_zc.check_report)
+  "text"   a string of 1 to bounds characters
+  "hex"    a string of exactly bounds lower-case hex digits
+  "checks" an object {train id: a string of bounds lower-case hex digits}
 A message is (kind, fields): kind is the `k` its header names. TOPICS says which topic carries which.
 """
 
@@ -38,7 +41,7 @@ RANGING = ("t_ms", 0, WRAP_MASK, "gap_mm", -100000, _POS_MM)
 HEADER = (
     ("v", "const", wire.VERSION, "", "protocol version"),
     ("k", "const", None, "", "kind"),
-    ("id", "id", None, "", "train id (must equal the topic's)"),
+    ("id", "id", None, "", "train id, or the zone's in a zone's message (must equal the topic's)"),
 )
 
 REPORT = ("rep", (
@@ -98,6 +101,17 @@ COMMAND = ("cmd", (
      "board's curves scale their decelerations by it, and its speed loop the command's speed and rates"),
 ))
 
+ZONE_INFO = ("info", (
+    ("sid", "int", (0, INT31), "", "the controller's session id (`sid` of its commands)"),
+    ("layout", "text", 64, "", "the name of the layout the zone runs"),
+    ("digest", "hex", 16, "",
+     "the layout's digest: the first 16 hex digits of SHA-256 over its geometry, stations, tags, blocks and IPS "
+     "frame (`Layout.digest`), the same for the same track whatever the file is called"),
+    ("checks", "checks", 16, "",
+     "a key check per train the zone governs: the first 16 hex digits of HMAC-SHA256(the train's key, "
+     "`cbtc key check`), which shows a holder of the key that it is the zone's and reveals nothing of it"),
+))
+
 # every message type by its topic: (topic, direction, QoS, retained, what it carries: a message of this table, or
 # the status payloads). Switch and hand-over messages join here, each with its own topic and table
 TOPICS = (
@@ -105,6 +119,7 @@ TOPICS = (
     ("cbtc/train/<id>/cmd", "controller -> board", 0, False, COMMAND),
     ("cbtc/train/<id>/status", "board", 1, True, STATUS),
     ("cbtc/zc/<zone>/status", "controller", 1, True, STATUS),
+    ("cbtc/zc/<zone>/info", "controller", 1, True, ZONE_INFO),
 )
 
 # what a command's field is when its encoder is not given it (a string: the value of the field it names); a field

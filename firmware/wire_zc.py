@@ -25,6 +25,10 @@ def topic_zone_status(zone_id):
     return "cbtc/zc/" + zone_id + "/status"
 
 
+def topic_zone_info(zone_id):
+    return "cbtc/zc/" + zone_id + "/info"
+
+
 # --- reports ---------------------------------------------------------------------------------------------------
 
 REPORT_INTS = messages.int_specs(messages.REPORT)   # a report's integer fields, all required: (name, lo, hi) flat

@@ -43,7 +43,7 @@ def test_the_board_writes_a_report_in_the_tables_order():
 
 def test_the_document_shows_the_tables_as_they_are():
     doc = open(DOC).read()
-    for message in (messages.REPORT, messages.COMMAND):
+    for message in (messages.REPORT, messages.COMMAND, messages.ZONE_INFO):
         assert markdown(message) in doc, "paste in what `python -m cbtc.protocol.message_docs` prints"
 
 
@@ -83,7 +83,8 @@ def test_every_topic_is_in_the_table_as_the_document_and_both_sides_have_it():
 
     doc = open(DOC).read()
     assert [t[0] for t in messages.TOPICS] == [wire.topic_report("<id>"), wire.topic_command("<id>"),
-                                              wire.topic_status("<id>"), wire_zc.topic_zone_status("<zone>")]
+                                              wire.topic_status("<id>"), wire_zc.topic_zone_status("<zone>"),
+                                              wire_zc.topic_zone_info("<zone>")]
     for topic, direction, qos, retained, carries in messages.TOPICS:
         row = next(line for line in doc.splitlines() if line.startswith(f"| `{topic}` |"))
         cells = [cell.strip() for cell in row.split("|")[1:-1]]

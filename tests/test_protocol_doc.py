@@ -11,7 +11,7 @@ DOC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 
 def test_topics_and_limits_match():
     doc = open(DOC).read()
     for topic in (wire.topic_report("<id>"), wire.topic_command("<id>"), wire.topic_status("<id>"),
-                  wire_zc.topic_zone_status("<zone>")):
+                  wire_zc.topic_zone_status("<zone>"), wire_zc.topic_zone_info("<zone>")):
         assert f"`{topic}`" in doc
     assert f"Payloads over {wire.MAX_PAYLOAD} bytes are refused" in doc
     assert wire_zc.decode_report.__module__.endswith("wire_zc") and wire.VERSION == 2 and "(version 2)" in doc

@@ -5,10 +5,11 @@ to stderr, no persistence), `passwd` (PBKDF2-SHA512 hashes in Mosquitto's `$7$` 
 them), `acl` and `credentials.json` (the clear-text passwords the clients need; keep it private).
 
 ACL: user `zc` reads every train's report and status and writes every train's command and `cbtc/zc/#`; user
-`train-<id>` writes only its own report and status and reads only its own command. Mosquitto drops a publish that the
-ACL forbids without telling the sender, so a train that tries to command another train is simply not heard, and no
-one but the zone controller, which never retains a command, can leave a message on a command topic (Mosquitto 2.0
-cannot refuse the retain flag per topic; boards drop retained messages). Packets over MAX_PACKET_BYTES are refused.
+`train-<id>` writes only its own report and status and reads only its own command and the zones' status and info.
+Mosquitto drops a publish that the ACL forbids without telling the sender, so a train that tries to command another
+train is simply not heard, and no one but the zone controller, which never retains a command, can leave a message on
+a command topic (Mosquitto 2.0 cannot refuse the retain flag per topic; boards drop retained messages). Packets
+over MAX_PACKET_BYTES are refused.
 Each client's id is its user name (`use_username_as_clientid`), so a client that reuses another's client id takes
 over only a session of its own user: a train's credentials can never disconnect the controller or another train.
 
@@ -63,6 +64,8 @@ def acl_text(train_ids) -> str:
                   "topic write " + wire.topic_report(train_id),
                   "topic write " + wire.topic_status(train_id),
                   "topic read " + wire.topic_command(train_id),
+                  "topic read cbtc/zc/+/status",
+                  "topic read cbtc/zc/+/info",
                   ""]
     return "\n".join(lines)
 

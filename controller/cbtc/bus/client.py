@@ -27,8 +27,9 @@ DEFAULT_PORT = 1883
 
 
 def topic_qos(topic: str) -> int:
-    """The QoS a topic is published and subscribed with: 1 for `.../status`, 0 for reports and commands."""
-    return 1 if topic.endswith("/status") else 0
+    """The QoS a topic is published and subscribed with: 1 for the retained `.../status` and `.../info`, 0 for
+    reports and commands."""
+    return 1 if topic.endswith(("/status", "/info")) else 0
 
 
 def parse_broker_url(url: str):

@@ -94,6 +94,18 @@ def train_ids(text):
 train_ids.__name__ = "train ids"
 
 
+def zone_id(text):
+    """A zone id: 1-16 of A-Z a-z 0-9 _ - (it is a topic level, cbtc/zc/<id>/...)."""
+    from cbtc.protocol import wire
+    try:
+        return wire.check_train_id(text)
+    except wire.WireError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("train id", "zone id")) from None
+
+
+zone_id.__name__ = "zone id"
+
+
 def seed_range(text):
     """Seeds: 'A-B' (A to B), 'A,B,C', or 'N' (0 to N-1); each a seed."""
     try:

@@ -19,6 +19,9 @@ from cbtc.commands.common import (
     write_json,
 )
 from cbtc.live.keys import credentials
+from cbtc.live.zone_match import ZoneMatch
+
+ZONE_INFO_WAIT_S = 0.3   # for a running zone's retained info before the first tick (a later zone is heard as it comes)
 
 EXAMPLES = (
     "cbtc trains --broker mqtt://127.0.0.1:1883 --layout itb_square --trains 2 --duration 2",
@@ -73,6 +76,10 @@ def run(args):
         raise
     monitor = TruthMonitor(layout, trains)
     notes = BoardNotes(trains, f"keys file {args.keys}" if args.keys else f"--sim-seed {args.sim_seed}")
+    match = ZoneMatch(trains[0].client, layout, keys, notes.key_source, loop.request_stop)
+    loop.pause(ZONE_INFO_WAIT_S)   # a zone already running says what it runs (retained) before a train moves
+    if match.problems:
+        return _mismatched(match, trains)
     start_s = loop.now_s()
     loop.scheduler.call_every(1.0, notes.check, start_s=start_s + 1.0)
     for index, train in enumerate(trains):
@@ -84,6 +91,8 @@ def run(args):
           f"{trains[0].client.port}", flush=True)
     loop.install_signal_handlers()
     loop.run(args.duration)
+    if match.problems:
+        return _mismatched(match, trains)
     summary = monitor.summary(loop.now_s() - start_s)
     for train in trains:
         train.client.disconnect()
@@ -98,6 +107,15 @@ def run(args):
               f"broker with these trains' keys ({notes.key_source})? Start both from one `cbtc setup` folder "
               f"(--setup DIR)", file=sys.stderr)
     return 0 if summary["collisions"] == 0 else 1
+
+
+def _mismatched(match, trains) -> int:
+    """2, with a line per mismatch between these trains and a zone on the broker (ZoneMatch), every train offline."""
+    for train in trains:
+        train.client.disconnect()
+    for problem in match.problems:
+        print(f"cbtc trains: error: {problem}", file=sys.stderr)
+    return 2
 
 
 def _status(monitor, args, now_s):

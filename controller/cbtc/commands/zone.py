@@ -37,7 +37,8 @@ def register(sub):
     p = sub.add_parser("zone", help="run the zone controller against a real MQTT broker", description=__doc__)
     add_connection_args(p, setup=True)
     add_fleet_args(p)
-    p.add_argument("--zone-id", default="zc1", help="zone id in cbtc/zc/<id>/status (default zc1)")
+    p.add_argument("--zone-id", type=arg_types.zone_id, default="zc1",
+                   help="zone id in cbtc/zc/<id>/status and /info (default zc1)")
     p.add_argument("--policy", choices=policy_names(), default=None,
                    help="authority policy (default: moving_block, or the scenario's)")
     p.add_argument("--estimator", choices=("ukf", "odometry"), default=None,
@@ -108,6 +109,7 @@ def run(args):
         recording = ReportRecording(args.record)
         zc.reports.subscribe(recording)
     zc.start()
+    _publish_info(bus, args.zone_id, zc.session_id, layout, keys)
     cycle = loop.scheduler.call_every(config.cycle_s, zc.cycle, start_s=loop.now_s() + 0.05)
     zc.views.subscribe(lambda view: _status(view, bus, loop, args))
     loop.scheduler.call_every(args.status_period, zc.publish_view, start_s=loop.now_s() + args.status_period)
@@ -129,6 +131,7 @@ def _shut_down(args, zc, bus, loop, cycle, modem, recording):
     cycle.cancel()
     bus.unsubscribe(wire_zc.REPORT_FILTER)
     zc.stop_all(loop.now_s())
+    bus.publish(wire_zc.topic_zone_info(args.zone_id), b"", retain=True, qos=1)   # cleared: no zone runs here now
     loop.pause(STOP_GRACE_S)
     bus.disconnect()
     if modem is not None:
@@ -143,17 +146,38 @@ def _shut_down(args, zc, bus, loop, cycle, modem, recording):
     return _unauthenticated(zc, summary)
 
 
+def _publish_info(bus, zone_id, session_id, layout, keys):
+    """The zone's retained info (protocol version, layout, a check of each train's key): a trains process started
+    beside it refuses to run on another version, layout or keys (cbtc.protocol.zone_info)."""
+    from cbtc.protocol import wire_zc, zone_info
+
+    payload = zone_info.encode_info(zone_id, session_id, layout.name, layout.digest(), keys)
+    bus.publish(wire_zc.topic_zone_info(zone_id), payload, retain=True, qos=1)
+
+
 def _unauthenticated(zc, summary) -> int:
-    """1, with one line, when a train whose reports came never sent one the zone could authenticate (its key is
-    not the zone's); 0 otherwise. The zone ran on regardless: a wrong key may be a stranger's, not a board's."""
-    wrong = [t for t, row in summary["trains"].items()
-             if row["data_age_s"] is None and summary["refusals"].get(f"{t}/wrong key")]
-    if not wrong:
-        return 0
-    print(f"cbtc zone: error: train{'s' if len(wrong) > 1 else ''} {', '.join(wrong)} reported, but never with a "
-          f"report this zone could authenticate: its keys ({zc.key_source}) are not the boards'; give both the same "
-          f"keys (one `cbtc setup` folder, --setup DIR, or the same --keys FILE)", file=sys.stderr)
-    return 1
+    """1, with one line each, when a train whose reports came never sent one the zone could take because its key is
+    not the zone's, or its board speaks another protocol version; 0 otherwise. The zone ran on regardless: a wrong
+    key may be a stranger's, not a board's."""
+    from cbtc.protocol import wire
+
+    def never(klass):
+        return [t for t, row in summary["trains"].items()
+                if row["data_age_s"] is None and summary["refusals"].get(f"{t}/{klass}")]
+
+    def trains(ids):
+        return f"train{'s' if len(ids) > 1 else ''} {', '.join(ids)}"
+
+    wrong, other = never("wrong key"), never("other version")
+    if wrong:
+        print(f"cbtc zone: error: {trains(wrong)} reported, but never with a report this zone could authenticate: "
+              f"its keys ({zc.key_source}) are not the boards'; give both the same keys (one `cbtc setup` folder, "
+              f"--setup DIR, or the same --keys FILE)", file=sys.stderr)
+    if other:
+        print(f"cbtc zone: error: {trains(other)} reported, but in another protocol version than this zone's "
+              f"({wire.VERSION}): flash the boards with this version's firmware (cbtc flash), or run trains and "
+              f"zone from one install", file=sys.stderr)
+    return 1 if wrong or other else 0
 
 
 def _tail_beacons(args, config):

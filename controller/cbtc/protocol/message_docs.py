@@ -41,6 +41,12 @@ def _type_and_range(kind: str, name: str, bounds, message_kind: str) -> tuple:
         uids = "uid %d, %d or %d hex digits (a 4, 7 or 10-byte MFRC522 uid)" % messages.UID_HEX_LENGTHS
         return (f"list of [{items}] or [{items}, data]",
                 f"at most {wire.MAX_TAGS}; {uids}; {_specs_text(bounds)}; data 32 hex digits")
+    if kind == "text":
+        return "str", f"1-{bounds} characters"
+    if kind == "hex":
+        return "str", f"{bounds} hex digits"
+    if kind == "checks":
+        return "object", f"{{train id: {bounds} hex digits}}"
     raise ValueError(f"field {name!r} has the unknown kind {kind!r}")
 
 
@@ -54,5 +60,6 @@ def markdown(message: tuple) -> str:
 
 
 if __name__ == "__main__":
-    for title, message in (("Report", messages.REPORT), ("Command", messages.COMMAND)):
+    for title, message in (("Report", messages.REPORT), ("Command", messages.COMMAND),
+                           ("Zone information", messages.ZONE_INFO)):
         print(f"### {title}\n\n{markdown(message)}\n")

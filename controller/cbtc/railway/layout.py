@@ -90,6 +90,24 @@ class Layout:
         """The tag with this uid (hex, any case), or None."""
         return self._tags_by_uid.get(uid.upper() if isinstance(uid, str) else uid)
 
+    def digest(self) -> str:
+        """16 hex digits of SHA-256 over the track (its shape every centimetre, to the millimetre), stations, tags,
+        blocks and IPS frame: two files that describe the same railway give the same digest, whatever their names."""
+        import hashlib
+
+        def mm(value):
+            return round(value, 3) + 0.0   # + 0.0: -0.0 is 0.0
+
+        count = max(2, int(self.length_m * 100))
+        shape = [tuple(map(mm, self.xy_m(self.length_m * i / count))) for i in range(count + 1)]
+        parts = (self.closed, mm(self.length_m), shape,
+                 [(st.name, mm(st.s_m), mm(st.window_m)) for st in self.stations],
+                 [(t.uid, mm(t.s_m)) for t in self.tags],
+                 [(b.name, mm(b.start_m), mm(b.end_m)) for b in self.blocks],
+                 (mm(self.ips.origin_x_m), mm(self.ips.origin_y_m), mm(self.ips.rotation_deg),
+                  [tuple(map(mm, beacon)) for beacon in self.ips.beacons]))
+        return hashlib.sha256(repr(parts).encode()).hexdigest()[:16]
+
     def block_at(self, s_m):
         """The fixed block holding `s_m` ([start, end)), or None where no block is defined."""
         s = self.wrap(s_m)

@@ -215,10 +215,13 @@ class ZoneController:
             return None
         except wire.WireError as exc:
             self.invalid_reports += 1
-            # a board of another protocol version (authenticated: the key matched) needs this version's firmware
-            advice = f"flash the board with this version's firmware (cbtc flash), which speaks version {wire.VERSION}" \
-                if " names version " in exc.reason else ""
-            self._refuse(state, "invalid report", exc.reason, recv_s, advice=advice)
+            if " names version " in exc.reason:
+                # a board of another protocol version (authenticated: the key matched) needs this version's firmware
+                self._refuse(state, "other version", exc.reason, recv_s,
+                             advice=f"flash the board with this version's firmware (cbtc flash), which speaks "
+                                    f"version {wire.VERSION}")
+            else:
+                self._refuse(state, "invalid report", exc.reason, recv_s)
             return None
         return report
 
