@@ -1,7 +1,7 @@
 """Run code under the MicroPython unix port with the host shims, the firmware and umqtt on its path.
 
 Boards get the firmware precompiled (cbtc.board.mpy_build), so the tests do too: `build_tree(out_dir)` compiles the
-firmware, the host shims (tests/mpy/shims: our `machine` and `network` replace the port's), the fakes and checks of
+firmware, the host shims (cbtc/board/host: our `machine` and `network` replace the port's), the fakes and checks of
 tests/mpy and umqtt.simple (vendor/, fetched by tools/fetch_umqtt.py) into one folder. MICROPYPATH is that folder,
 then `.frozen` (the port's built-in modules such as asyncio).
 """
@@ -16,7 +16,7 @@ from cbtc.board.mpy_build import build, mpy_cross_command
 from cbtc.firmware import manifest
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SHIMS_DIR = os.path.join(REPO, "tests", "mpy", "shims")
+SHIMS_DIR = os.path.join(REPO, "controller", "cbtc", "board", "host")
 MPY_TESTS_DIR = os.path.join(REPO, "tests", "mpy")
 VENDOR_DIR = os.path.join(REPO, "vendor")
 MICROPYTHON = shutil.which("micropython")

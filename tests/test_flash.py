@@ -1,4 +1,4 @@
-"""`cbtc flash` against a test board: the MicroPython unix port on a pseudo-terminal (tests/pty_board.py).
+"""`cbtc flash` against a test board: the MicroPython unix port on a pseudo-terminal (cbtc.board.virtual_board).
 
 The deployed firmware must boot there (its boot message is what flash waits for) and report over a real Mosquitto.
 Failures are BoardErrors that name the port: no such port, a port nobody answers on, a copy that cannot land.
@@ -15,7 +15,7 @@ from cbtc.board.flash import flash, parse_broker, train_config_source
 from cbtc.cli import main as cli_main
 from cbtc.errors import BoardError, ConfigError
 from mpy_harness import build_host_only, requires_micropython, requires_umqtt
-from pty_board import PtyBoard
+from cbtc.board.virtual_board import PtyBoard
 from test_board_mqtt import KEY, Controller, Mosquitto, free_port
 
 pytestmark = [requires_micropython, requires_umqtt]

@@ -23,6 +23,7 @@ COMMANDS = (
     "ranging",
     "balise",
     "guard",
+    "board",
     "flash",
     "calibrate",
     "setup", "zone", "trains", "keys", "broker", "bench", "fuzz", "campaign",

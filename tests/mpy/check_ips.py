@@ -1,6 +1,6 @@
 """IPS receiver checks that run unchanged under CPython and under the MicroPython unix port.
 
-Each `check_*` function builds the driver on the host shims (tests/mpy/shims) and asserts byte-exact behaviour;
+Each `check_*` function builds the driver on the host shims (cbtc/board/host) and asserts byte-exact behaviour;
 tests/test_drivers.py calls each one directly and again inside `micropython -X heapsize=36K`.
 Frames are built here with a table-driven CRC-16/Modbus, independent of the driver's bitwise one.
 """

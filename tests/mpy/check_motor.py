@@ -1,6 +1,6 @@
 """Motor checks that run unchanged under CPython and under the MicroPython unix port.
 
-Each `check_*` function builds the driver on the host shims (tests/mpy/shims) and asserts byte-exact behaviour;
+Each `check_*` function builds the driver on the host shims (cbtc/board/host) and asserts byte-exact behaviour;
 tests/test_drivers.py calls each one directly and again inside `micropython -X heapsize=36K`.
 """
 
