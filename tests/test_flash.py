@@ -12,10 +12,10 @@ import time
 import pytest
 
 from cbtc.board.flash import flash, parse_broker, train_config_source
+from cbtc.board.virtual_board import PtyBoard
 from cbtc.cli import main as cli_main
 from cbtc.errors import BoardError, ConfigError
 from mpy_harness import build_host_only, requires_micropython, requires_umqtt
-from cbtc.board.virtual_board import PtyBoard
 from test_board_mqtt import KEY, Controller, Mosquitto, free_port
 
 pytestmark = [requires_micropython, requires_umqtt]
