@@ -44,36 +44,15 @@ def register(sub):
 
 
 def run(args):
-    import numpy as np
-
-    from cbtc.bus.broker_config import train_user
-    from cbtc.bus.clients import start_bus
     from cbtc.live.board_notes import BoardNotes
     from cbtc.live.loop import LiveLoop
-    from cbtc.protocol import wire
     from cbtc.sim.truth import TruthMonitor
-    from cbtc.sim.virtual_train import VirtualTrain
 
     apply_setup(args)
     config, keys = fleet_from_args(args, seed=args.seed)
     layout = config.layout
     loop = LiveLoop()
-    trains = []
-    try:
-        for index, spec in enumerate(config.trains):
-            user = train_user(spec.train_id)
-            username, password = credentials(user, args.username, args.password, args.credentials)
-            bus = start_bus(args.mqtt_client, args.broker, user, loop.net,
-                            status_topic=wire.topic_status(spec.train_id), username=username, password=password,
-                            login=login_source(args, user))
-            rng = np.random.default_rng([args.seed, index])
-            offset_ms = int(rng.integers(0, 10_000_000))
-            trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], layout, spec.profile, spec.s0_m, bus, rng,
-                                       offset_ms))
-    except Exception:
-        for train in trains:
-            train.client.disconnect()
-        raise
+    trains = _connected_trains(args, config, keys, loop)
     monitor = TruthMonitor(layout, trains)
     notes = BoardNotes(trains, f"keys file {args.keys}" if args.keys else f"--sim-seed {args.sim_seed}")
     match = ZoneMatch(trains[0].client, layout, keys, notes.key_source, loop.request_stop)
@@ -107,6 +86,34 @@ def run(args):
               f"broker with these trains' keys ({notes.key_source})? Start both from one `cbtc setup` folder "
               f"(--setup DIR)", file=sys.stderr)
     return 0 if summary["collisions"] == 0 else 1
+
+
+def _connected_trains(args, config, keys, loop):
+    """A VirtualTrain per train of the fleet, each on its own connection to the broker (user train-<id>)."""
+    import numpy as np
+
+    from cbtc.bus.broker_config import train_user
+    from cbtc.bus.clients import start_bus
+    from cbtc.protocol import wire
+    from cbtc.sim.virtual_train import VirtualTrain
+
+    trains = []
+    try:
+        for index, spec in enumerate(config.trains):
+            user = train_user(spec.train_id)
+            username, password = credentials(user, args.username, args.password, args.credentials)
+            bus = start_bus(args.mqtt_client, args.broker, user, loop.net,
+                            status_topic=wire.topic_status(spec.train_id), username=username, password=password,
+                            login=login_source(args, user))
+            rng = np.random.default_rng([args.seed, index])
+            offset_ms = int(rng.integers(0, 10_000_000))
+            trains.append(VirtualTrain(spec.train_id, keys[spec.train_id], config.layout, spec.profile, spec.s0_m,
+                                       bus, rng, offset_ms))
+    except Exception:
+        for train in trains:
+            train.client.disconnect()
+        raise
+    return trains
 
 
 def _mismatched(match, trains) -> int:

@@ -215,13 +215,10 @@ class ZoneController:
             return None
         except wire.WireError as exc:
             self.invalid_reports += 1
-            if " names version " in exc.reason:
-                # a board of another protocol version (authenticated: the key matched) needs this version's firmware
-                self._refuse(state, "other version", exc.reason, recv_s,
-                             advice=f"flash the board with this version's firmware (cbtc flash), which speaks "
-                                    f"version {wire.VERSION}")
-            else:
-                self._refuse(state, "invalid report", exc.reason, recv_s)
+            other = " names version " in exc.reason   # a board of another version (the key matched): flash it
+            advice = f"flash the board with this version's firmware (cbtc flash), which speaks version {wire.VERSION}"
+            self._refuse(state, "other version" if other else "invalid report", exc.reason, recv_s,
+                         advice=advice if other else "")
             return None
         return report
 
