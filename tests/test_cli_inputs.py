@@ -92,3 +92,20 @@ def test_the_scenario_list_says_each_first_sentence_whole(capsys):
     out = capsys.readouterr().out
     assert all(line.count("`") % 2 == 0 for line in out.splitlines()), out   # no `command` cut across lines
     assert "300 s." in out and "five laps." in out
+
+
+def test_a_flag_the_command_does_not_take_is_named_by_the_command_with_the_nearest_it_has(capsys, tmp_path):
+    (tmp_path / "r").write_text("{}\n")
+    for argv, said in ((["zone", "--brokr", "x"], "cbtc zone: error: unrecognized arguments: --brokr x; did you mean "
+                                                  "--broker? (see cbtc zone --help)"),
+                       (["calibrate", "encoder", "--reports", str(tmp_path / "r"), "--distance-m", "1",
+                         "--train-id", "A"],
+                        "cbtc calibrate encoder: error: unrecognized arguments: --train-id A; did you mean --train?")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert said in err and err.count("\n") == 1, err
+
+
+def test_a_device_given_for_a_file_is_named_as_not_a_file(capsys):
+    assert main(["calibrate", "encoder", "--reports", "/dev/null", "--distance-m", "1"]) == 2
+    assert "/dev/null is not a regular file" in capsys.readouterr().err

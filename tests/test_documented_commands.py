@@ -18,7 +18,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # a user's own things: their board's port, their broker's address, their files, placeholders
 USERS_OWN = re.compile(r"HOST|PORT\b|FILE\b|<|\.\.\.|/dev/tty|192\.168\.|my_table|run\.jsonl|points\.csv|"
                        r"keys\.json --|credentials\.json|--setup |/dev/pts/N|board virtual")
-# --setup: the live run (tests/test_live_setup.py); the rehearsal board runs until stopped (tests/test_rehearsal_board.py)
+# --setup: the live run (tests/test_live_setup.py); the rehearsal board runs until stopped
+# (tests/test_rehearsal_board.py)
 LIVE_URL = "mqtt://127.0.0.1:1883"
 
 

@@ -73,7 +73,9 @@ def main(argv=None) -> int:
     logging.basicConfig(level=logging.WARNING, handlers=[handler])
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:
+            _unknown(parser, args, extra)
     except SystemExit as exc:   # --help, --version, or a bad command line (already said): its status, returned
         return exc.code if isinstance(exc.code, int) else 2
     try:
@@ -87,6 +89,19 @@ def main(argv=None) -> int:
     except BrokenPipeError:
         _quiet_stdout()
         return 0
+
+
+def _unknown(parser, args, extra) -> None:
+    """Refuse words the command does not take, by the command's own parser, with the nearest flag it has."""
+    import difflib
+
+    command = parser._subparsers._group_actions[0].choices[args.command]
+    inner = [a for a in command._actions if isinstance(a, argparse._SubParsersAction)]
+    if inner and getattr(args, "what", None) in inner[0].choices:   # cbtc board virtual, cbtc calibrate encoder
+        command = inner[0].choices[args.what]
+    flags = [flag for action in command._actions for flag in action.option_strings]
+    near = difflib.get_close_matches(extra[0].split("=")[0], flags, n=1) if extra[0].startswith("-") else []
+    command.error(f"unrecognized arguments: {' '.join(extra)}" + (f"; did you mean {near[0]}?" if near else ""))
 
 
 def _quiet_stdout() -> None:

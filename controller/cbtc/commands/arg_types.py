@@ -193,7 +193,8 @@ def tail_beacons(text):
 def input_file(text):
     """A file to read: it must exist now."""
     if not os.path.isfile(text):
-        what = "is a folder" if os.path.isdir(text) else "does not exist"
+        what = "is a folder" if os.path.isdir(text) else "is not a regular file" if os.path.exists(text) else \
+            "does not exist"
         raise argparse.ArgumentTypeError(f"{text} {what}; give the path of a file")
     if not os.access(text, os.R_OK):
         raise argparse.ArgumentTypeError(f"{text} is not readable; check its permissions")
