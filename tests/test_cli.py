@@ -160,3 +160,20 @@ def _all_flags(parser, prefix=()):
                 yield from _all_flags(sub, prefix + (name,))
         elif action.option_strings and action.dest != "help" and action.help != argparse.SUPPRESS:
             yield prefix, action
+
+
+# what a command's one-line description starts with: it says what the command does, in one voice
+VERBS = {"run", "simulate", "list", "print", "check", "compare", "measure", "write", "decode", "start", "copy",
+         "calibrate", "find", "survey", "make", "time", "throw"}
+
+
+def test_every_command_is_described_in_one_voice_by_what_it_does():
+    def described(parser, prefix):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for choice in action._choices_actions:
+                    yield f"{prefix} {choice.dest}", choice.help
+                    yield from described(action.choices[choice.dest], f"{prefix} {choice.dest}")
+
+    odd = [(name, text) for name, text in described(build_parser(), "cbtc") if text.split()[0] not in VERBS]
+    assert not odd, odd

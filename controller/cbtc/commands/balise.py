@@ -14,11 +14,11 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("balise", help="telegram images for balise tags, and decoding of tag data",
+    p = sub.add_parser("balise", help="write telegram images for balise tags, and decode tag data",
                        description=__doc__)
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
-    image = verbs.add_parser("image", help="the 16 data bytes to write into each tag of a layout")
+    image = verbs.add_parser("image", help="print the 16 data bytes to write into each tag of a layout")
     image.add_argument("--layout", type=arg_types.layout, default="itb_square",
                        help="layout whose tags to write telegrams for (default itb_square)")
     image.add_argument("--json", action="store_true", help="print the telegrams as JSON")

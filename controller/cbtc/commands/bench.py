@@ -35,7 +35,7 @@ def register(sub):
 
 
 def _latency_parser(bench_sub):
-    lat = bench_sub.add_parser("latency", help="report -> command round trip through the broker",
+    lat = bench_sub.add_parser("latency", help="time the report -> command round trip through the broker",
                                description=module_doc("cbtc.experiments.latency"),
                                formatter_class=argparse.RawDescriptionHelpFormatter)
     lat.add_argument("--broker", default="embedded", metavar="URL",
@@ -60,7 +60,7 @@ def _latency_parser(bench_sub):
 
 
 def _sim_parsers(bench_sub):
-    sim = _speed_parser(bench_sub, "sim", "simulated seconds per wall second, beside a do-nothing controller")
+    sim = _speed_parser(bench_sub, "sim", "measure simulated seconds per wall second, beside a do-nothing controller")
     sim.add_argument("--layout", type=arg_types.layout, default=None,
                      help="one layout (with --trains); default: the paper's 2 trains on itb_square, 11 on lego_oval, "
                           "50 on lego_long_oval")
@@ -71,12 +71,12 @@ def _sim_parsers(bench_sub):
                           "the figure, as timeit takes it")
     sim.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     sim.set_defaults(func=run_sim)
-    fusion = _speed_parser(bench_sub, "fusion", "our filter's train-update beside filterpy's, on the same inputs")
+    fusion = _speed_parser(bench_sub, "fusion", "time our filter's train-update beside filterpy's, on the same inputs")
     fusion.add_argument("--trains", type=arg_types.train_count, default=50, help="filters (default 50)")
     fusion.add_argument("--steps", type=arg_types.whole(1), default=40, help="updates each (default 40)")
     fusion.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     fusion.set_defaults(func=run_fusion)
-    ctl = _speed_parser(bench_sub, "controller", "a zone's time per report, beside decoding the reports alone")
+    ctl = _speed_parser(bench_sub, "controller", "time a zone per report, beside decoding the reports alone")
     ctl.add_argument("--trains", type=arg_types.train_count, default=None,
                      help="trains (default: 11 and 50); up to 11 on lego_oval, more on lego_long_oval")
     ctl.add_argument("--duration", type=arg_types.seconds, default=10.0,
@@ -86,13 +86,13 @@ def _sim_parsers(bench_sub):
 
 
 def _other_parsers(bench_sub):
-    mem = _speed_parser(bench_sub, "memory", "a simulation's memory growth per simulated hour, beside keeping samples")
+    mem = _speed_parser(bench_sub, "memory", "measure a simulation's memory growth an hour, beside keeping samples")
     mem.add_argument("--trains", type=arg_types.train_count, default=6, help="trains on lego_oval (default 6)")
     mem.add_argument("--duration", type=arg_types.seconds, default=600.0,
                      help="simulated seconds (default 600; 3600 for the hour itself)")
     mem.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     mem.set_defaults(func=run_memory)
-    every = _speed_parser(bench_sub, "all", "sim, fusion, controller, memory and startup in one run, one report")
+    every = _speed_parser(bench_sub, "all", "run sim, fusion, controller, memory and startup in one run, one report")
     every.add_argument("--duration", type=arg_types.seconds, default=30.0,
                        help="simulated seconds of each sim case (default 30)")
     every.add_argument("--controller-duration", type=arg_types.seconds, default=10.0,
@@ -104,12 +104,12 @@ def _other_parsers(bench_sub):
                             "each is the figure, as timeit takes it")
     every.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     every.set_defaults(func=run_all)
-    build = _speed_parser(bench_sub, "build", "the compiled build beside its Python source (CBTC_PURE=1)")
+    build = _speed_parser(bench_sub, "build", "time the compiled build beside its Python source (CBTC_PURE=1)")
     build.add_argument("--duration", type=arg_types.seconds, default=10.0,
                        help="simulated seconds of the simulation and of the zone's replay (default 10)")
     build.add_argument("--seed", type=arg_types.seed, default=0, help="random seed of the runs measured (default 0)")
     build.set_defaults(func=run_build)
-    start = _speed_parser(bench_sub, "startup", "wall time and memory of commands that do little, beside python")
+    start = _speed_parser(bench_sub, "startup", "measure the time and memory of commands that do little, beside python")
     start.add_argument("--runs", type=arg_types.whole(1, 100), default=5, help="runs of each, in turn (default 5)")
     start.set_defaults(func=run_startup)
 

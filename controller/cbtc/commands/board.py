@@ -18,7 +18,7 @@ EXAMPLES = (
 
 
 def register(subparsers):
-    p = subparsers.add_parser("board", help="a rehearsal board: the real firmware on the MicroPython unix port",
+    p = subparsers.add_parser("board", help="start a rehearsal board: the real firmware on the MicroPython unix port",
                               description=__doc__)
     sub = p.add_subparsers(dest="what", metavar="WHAT")
     sub.required = True

@@ -17,7 +17,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("broker", help="generate a Mosquitto configuration with per-train ACLs", description=__doc__)
+    p = sub.add_parser("broker", help="write a Mosquitto configuration with per-train ACLs", description=__doc__)
     broker_sub = p.add_subparsers(dest="broker_command", metavar="ACTION")
     broker_sub.required = True
     cfg = broker_sub.add_parser("config", help="write mosquitto.conf, passwd, acl, credentials.json",

@@ -18,11 +18,11 @@ EXAMPLES = (
 
 
 def register(subparsers):
-    p = subparsers.add_parser("calibrate", help="encoder scale, IPS frame, RFID tag positions from recorded data",
-                              description=__doc__)
+    p = subparsers.add_parser("calibrate", description=__doc__,
+                              help="calibrate the encoder scale, IPS frame or RFID tag positions from recorded data")
     sub = p.add_subparsers(dest="what", metavar="WHAT")
     sub.required = True
-    enc = sub.add_parser("encoder", help="counts per metre from a run of measured length")
+    enc = sub.add_parser("encoder", help="find the counts per metre from a run of measured length")
     enc.add_argument("--reports", type=arg_types.input_file, required=True, help="JSON-lines file of the run's reports")
     enc.add_argument("--distance-m", type=arg_types.number(above=0.0, example="3.2"), required=True,
                      help="distance the train really travelled (m)")
@@ -31,11 +31,11 @@ def register(subparsers):
     enc.add_argument("--train", default=None, metavar="ID", help="the train whose reports to use (a recording of "
                                                                  "several trains needs it)")
     enc.set_defaults(func=_encoder)
-    ips = sub.add_parser("ips", help="IPS frame (origin, rotation) from points measured in both frames")
+    ips = sub.add_parser("ips", help="find the IPS frame (origin, rotation) from points measured in both frames")
     ips.add_argument("--points", type=arg_types.input_file, required=True,
                      help="CSV with header ips_x_mm,ips_y_mm,track_x_m,track_y_m: the hedgehog placed at known spots")
     ips.set_defaults(func=_ips)
-    tags = sub.add_parser("tags", help="tag positions along the track from a run's RFID reads")
+    tags = sub.add_parser("tags", help="survey the tag positions along the track from a run's RFID reads")
     tags.add_argument("--reports", type=arg_types.input_file, required=True,
                       help="JSON-lines file of the run's reports")
     tags.add_argument("--start-s-m", type=arg_types.number(minimum=0.0, example="0"), default=0.0,

@@ -28,7 +28,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("campaign", help="seeded runs over fault classes, layouts and fleet sizes, judged by truth",
+    p = sub.add_parser("campaign", help="run seeded faults over classes, layouts and fleet sizes, judged by truth",
                        description=__doc__ + "\n" + campaign.__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--runs", type=arg_types.whole(1, MAX_RUNS), default=100, help="number of runs (default 100)")

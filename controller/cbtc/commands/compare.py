@@ -41,8 +41,8 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("compare", help="moving block vs fixed block on the paper scenario (gap, lap time, safety)",
-                       description=__doc__)
+    p = sub.add_parser("compare", description=__doc__,
+                       help="compare moving block with fixed block on the paper scenario (gap, lap time, safety)")
     add_paper_or_scenario_args(p)
     p.add_argument("--blocks", default="", help="comma-separated block counts to sweep for the fixed-block baseline")
     p.add_argument("--report-ms", default="", metavar="MS,...",

@@ -15,7 +15,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("fusion", help="sensor fusion RMSE table (the paper's Table 1) on the paper scenario",
+    p = sub.add_parser("fusion", help="print the sensor fusion RMSE table (the paper's Table 1) on the paper scenario",
                        description="Runs the paper scenario once, then replays the recorded reports through each "
                                    "fusion variant (dead reckoning, IPS alone, UKF encoder+IPS, UKF encoder+IPS+RFID) "
                                    "and prints their RMSE against truth beside the paper's. Exit status 1 when the "

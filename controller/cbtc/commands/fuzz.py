@@ -21,7 +21,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("fuzz", help="throw bad payloads at a live zone and trains over Mosquitto, check nothing got "
+    p = sub.add_parser("fuzz", help="throw bad payloads at a live zone and trains over Mosquitto; check nothing got "
                                     "through", description=__doc__ + "\n" + module_doc("cbtc.experiments.fuzz"),
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--broker", type=arg_types.broker_url, default=None, metavar="URL",

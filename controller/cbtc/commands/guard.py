@@ -10,7 +10,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("guard", help="faulty leader: collisions without and with the onboard ranging guard",
+    p = sub.add_parser("guard", help="run a faulty leader: collisions without and with the onboard ranging guard",
                        description="Runs the paper scenario with train A's encoder counting 1.5x fast and its IPS "
                                    "1 m ahead, so the zone controller's authority for train B is too long; once "
                                    "without and once with train-to-train ranging and B's onboard collision guard. "

@@ -11,7 +11,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("layout", help="show or list track layouts", description=__doc__)
+    p = sub.add_parser("layout", help="list or show the track layouts", description=__doc__)
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
     show = verbs.add_parser("show", help="print a layout's length, stations, tags and blocks; draw it")
@@ -20,7 +20,7 @@ def register(sub):
                       help="draw the layout to this PNG (--png: the same, the older name)")
     show.add_argument("--json", action="store_true", help="print the description as JSON")
     show.set_defaults(func=run_show)
-    listing = verbs.add_parser("list", help="the packaged layouts")
+    listing = verbs.add_parser("list", help="list the packaged layouts")
     listing.set_defaults(func=run_list)
 
 

@@ -10,7 +10,7 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("ranging", help="coded train-to-train ranging, BER of the data channel, telegram coding",
+    p = sub.add_parser("ranging", help="measure coded train-to-train ranging, the data channel's BER, telegram coding",
                        description="Ranging accuracy against chip length and SNR (two-way exchanges, two other "
                                    "trains' codes present), the SNR threshold of the receiver, the BER of the "
                                    "31-chip data channel beside theory and the CODIBDT coded radar, and telegram "

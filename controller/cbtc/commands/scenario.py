@@ -18,7 +18,7 @@ def register(sub):
     show.add_argument("scenario", type=arg_types.scenario, help="YAML file or packaged name (cbtc scenario list)")
     show.add_argument("--json", action="store_true", help="print the description as JSON")
     show.set_defaults(func=run_show)
-    listing = verbs.add_parser("list", help="the packaged scenarios")
+    listing = verbs.add_parser("list", help="list the packaged scenarios")
     listing.set_defaults(func=run_list)
 
 

@@ -23,7 +23,7 @@ SETUP_FILE = "live.json"
 
 
 def register(sub):
-    p = sub.add_parser("setup", help="one folder for a live run: broker config, keys, credentials, live.json",
+    p = sub.add_parser("setup", help="write one folder for a live run: broker config, keys, credentials, live.json",
                        description=__doc__)
     p.add_argument("--layout", type=arg_types.layout, default=None,
                    help="layout file or packaged name, e.g. itb_square (or give --scenario)")

@@ -14,7 +14,8 @@ EXAMPLES = (
 
 
 def register(sub):
-    p = sub.add_parser("sim", help="simulate N trains on a layout", description=__doc__)
+    p = sub.add_parser("sim", description=__doc__,
+                       help="simulate any trains on a layout or scenario, with faults, under either policy")
     p.add_argument("--scenario", type=arg_types.scenario, default=None, metavar="FILE", help=SCENARIO_HELP)
     p.add_argument("--layout", type=arg_types.layout, default=None,
                    help="layout file or packaged name (default: lego_oval)")
