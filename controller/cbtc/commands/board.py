@@ -73,11 +73,13 @@ def run(args):
         try:
             while not stop and (end_s is None or time.monotonic() < end_s):
                 if interactive and select.select([sys.stdin], [], [], 0.25)[0]:
-                    sys.stdin.readline()
-                    wheel.push()
-                    print("pushing the train (the wheel turns once the firmware runs)", flush=True)
-                elif not interactive:
-                    time.sleep(0.25)
+                    if not sys.stdin.readline():   # the terminal closed: no more Enter to wait for
+                        interactive = False
+                    elif said != "pushing" and not os.path.exists(wheel.trigger):
+                        wheel.push()
+                        print("the train will be pushed (once the firmware runs)", flush=True)
+                else:
+                    time.sleep(0 if interactive else 0.25)
                 state, pushed_m, counts = wheel.read()
                 if state != said:
                     said = state
