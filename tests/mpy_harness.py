@@ -12,7 +12,7 @@ import subprocess
 
 import pytest
 
-from cbtc.board.mpy_build import build, mpy_cross_command
+from cbtc.board.mpy_build import build, compile_one
 from cbtc.firmware import manifest
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -32,12 +32,7 @@ requires_umqtt = pytest.mark.skipif(
 
 def _compile(src, out_dir, rel, opt=()):
     """Compile `src` to `out_dir`/`rel`, naming its source `rel` as cbtc.board.mpy_build does."""
-    target = os.path.join(out_dir, rel)
-    os.makedirs(os.path.dirname(target), exist_ok=True)
-    proc = subprocess.run(mpy_cross_command() + list(opt) + ["-s", rel, "-o", target, src], capture_output=True,
-                          text=True)
-    if proc.returncode != 0:
-        raise RuntimeError("mpy-cross failed on %s: %s" % (src, proc.stderr.strip()))
+    compile_one(src, out_dir, rel, opt)
 
 
 def build_tree(out_dir):

@@ -43,12 +43,17 @@ def build(out_dir, files=None, arch=None):
                 fout.write(fin.read())
         else:
             target_rel = rel[:-3] + ".mpy"
-            target = os.path.join(out_dir, target_rel)
-            os.makedirs(os.path.dirname(target) or out_dir, exist_ok=True)
-            args = cmd + (["-march=" + arch] if arch else []) + ["-s", target_rel.replace(os.sep, "/"), "-o", target,
-                                                                 src]
-            proc = subprocess.run(args, capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise CbtcError(f"mpy-cross failed on {rel}: {proc.stderr.strip() or proc.stdout.strip()}")
+            compile_one(src, out_dir, target_rel, ["-march=" + arch] if arch else [], cmd, name=rel)
         written.append(target_rel)
     return written
+
+
+def compile_one(src, out_dir, target_rel, options=(), cmd=None, name=None):
+    """Compile the file `src` to `out_dir`/`target_rel` (.mpy, named by that path, as the board holds it) with
+    mpy-cross `options`; CbtcError naming the file (`name`, default `src`) when it fails."""
+    target = os.path.join(out_dir, target_rel)
+    os.makedirs(os.path.dirname(target) or out_dir, exist_ok=True)
+    args = (cmd or mpy_cross_command()) + list(options) + ["-s", target_rel.replace(os.sep, "/"), "-o", target, src]
+    proc = subprocess.run(args, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise CbtcError(f"mpy-cross failed on {name or src}: {proc.stderr.strip() or proc.stdout.strip()}")

@@ -198,20 +198,13 @@ def build_rehearsal(folder, wheel, umqtt_path):
     """Compile a rehearsal board's built-in modules into `folder` (the PtyBoard's `path`): the host `network`, the
     host `machine` as host_machine under the wheel's `machine`, umqtt.simple (frozen on a real board), and the wheel's
     configuration."""
-    import subprocess
+    from cbtc.board.mpy_build import compile_one
 
-    from cbtc.board.mpy_build import mpy_cross_command
-    from cbtc.errors import BoardError
-
-    os.makedirs(os.path.join(folder, "umqtt"), exist_ok=True)
     for src, rel in ((os.path.join(HOST_DIR, "machine.py"), "host_machine.mpy"),
                      (os.path.join(HOST_DIR, "network.py"), "network.mpy"),
                      (os.path.join(REHEARSAL_DIR, "machine.py"), "machine.mpy"),
                      (umqtt_path, "umqtt/simple.mpy")):
-        done = subprocess.run(mpy_cross_command() + ["-O3", "-s", rel[:-4] + ".py", "-o", os.path.join(folder, rel),
-                                                     src], capture_output=True, text=True)
-        if done.returncode != 0:
-            raise BoardError(f"mpy-cross could not compile {src}: {done.stderr.strip()}")
+        compile_one(src, folder, rel, ["-O3"])
     with open(os.path.join(folder, "wheel_config.py"), "w") as fh:
         fh.write(wheel.config_source())
     return folder

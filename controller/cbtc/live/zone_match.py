@@ -5,6 +5,7 @@ A zone's retained info (cbtc.protocol.zone_info) counts only while its retained 
 killed leaves its info behind, and its last will marks it offline.
 """
 
+from cbtc.bus.client import ONLINE
 from cbtc.protocol import wire, zone_info
 
 
@@ -24,7 +25,7 @@ class ZoneMatch:
         bus.subscribe(zone_info.INFO_FILTER, self._information)
 
     def _status(self, topic, payload):
-        self._online[topic.split("/")[2]] = bytes(payload) == b"online"
+        self._online[topic.split("/")[2]] = bytes(payload) == ONLINE
         self._check()
 
     def _information(self, topic, payload):
