@@ -8,7 +8,7 @@ import yaml
 
 from cbtc.cli import main as cbtc_main
 from cbtc.errors import LayoutError
-from cbtc.layout_files import layout_names, load_layout
+from cbtc.layout_files import layout_names, load_layout, path_layout_names
 from cbtc.railway.layout import Block
 from cbtc.railway.layout_dict import CLOSE_TOLERANCE_DEG, CLOSE_TOLERANCE_M, layout_from_dict
 
@@ -17,7 +17,9 @@ SHIPPED = {"itb_square", "lego_oval", "lego_chicane", "straight_test"}
 
 def test_every_shipped_layout_loads_and_loops_close():
     assert SHIPPED <= set(layout_names())
-    for name in layout_names():
+    assert SHIPPED | {"lego_passing_loop", "lego_branch"} <= set(layout_names())
+    assert set(path_layout_names()) == set(layout_names()) - {"lego_passing_loop", "lego_branch"}
+    for name in path_layout_names():
         layout = load_layout(name)
         assert layout.name == name and layout.length_m > 0
         if layout.closed:

@@ -3,7 +3,7 @@ stations past the last stop are not looked for behind the train."""
 
 import pytest
 
-from cbtc.layout_files import layout_names, load_layout
+from cbtc.layout_files import load_layout, path_layout_names
 from cbtc.railway.layout_dict import layout_from_dict
 from cbtc.sim.runs import sim_config
 from cbtc.sim.simulation import Simulation
@@ -42,7 +42,7 @@ def test_trains_on_a_line_stop_at_each_station_ahead_once():
     assert front.stop_overruns == 0 and rear.stop_overruns == 0
 
 
-@pytest.mark.parametrize("name", layout_names())
+@pytest.mark.parametrize("name", path_layout_names())
 def test_every_shipped_layout_runs_two_and_six_trains_safely(name):
     for n_trains in (2, 6):
         _recorder, summary = _run(sim_config(name, n_trains, seed=1, duration_s=12.0))

@@ -11,6 +11,8 @@ import yaml
 from cbtc.errors import LayoutError
 from cbtc.railway.layout import Layout
 from cbtc.railway.layout_dict import layout_from_dict
+from cbtc.railway.network_layout import refuse_network
+from cbtc.yaml_lines import YamlKeyError, load_with_lines
 
 
 def packaged_names(package: str):
@@ -38,19 +40,32 @@ def layout_names():
     return packaged_names("cbtc.track_layouts")
 
 
+def path_layout_names():
+    """Names of the shipped single-path layouts (loops and lines: what the simulator and the zone run on)."""
+    return [name for name in layout_names() if not load_track(name).is_network]
+
+
 def resolve_layout(path_or_name) -> str:
     """A readable file path for a layout file path or a packaged layout name."""
     return resolve_packaged(path_or_name, "cbtc.track_layouts", "layout")
 
 
-def load_layout(path_or_name) -> Layout:
-    """Load and validate a layout from a YAML file path or a packaged name such as "itb_square"."""
+def load_track(path_or_name):
+    """Load and validate any layout: a Layout (one path) or a NetworkLayout (sections and switches)."""
     source = resolve_layout(path_or_name)
     try:
         with open(source, encoding="utf-8") as f:
-            data = yaml.safe_load(f)
+            data = load_with_lines(f)
     except yaml.YAMLError as exc:
         raise LayoutError(f"{source}: not valid YAML: {' '.join(str(exc).split())}; fix the syntax there") from None
+    except YamlKeyError as exc:
+        raise LayoutError(f"{source}:{exc.line}: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise LayoutError(f"{source}: cannot read it as a UTF-8 text file: {exc}") from None
     return layout_from_dict(data, source)
+
+
+def load_layout(path_or_name, what="this command") -> Layout:
+    """Load and validate a single-path layout from a YAML file path or a packaged name such as "itb_square";
+    LayoutError for a track network, which `what` cannot run on."""
+    return refuse_network(load_track(path_or_name), what)

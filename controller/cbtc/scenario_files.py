@@ -15,6 +15,7 @@ from cbtc.layout_files import load_layout, packaged_names, resolve_packaged
 from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.sim import faults as fault_catalogue
+from cbtc.yaml_lines import LineMap, LineSeq, YamlKeyError, load_with_lines
 from cbtc.zone.config import ScenarioConfig, TrainSpec
 from cbtc.zone.factory import make_policy, policy_class
 
@@ -28,56 +29,6 @@ PROFILE_KEYS = tuple(f.name for f in fields(TrainProfile))
 POLICIES = policy_names()
 ESTIMATORS = ("ukf", "odometry")
 CLEAR_TRACK = ("truth", "none")   # ScenarioConfig.clear_track
-
-
-class _Map(dict):
-    """A YAML mapping that remembers its own line and the line of each key."""
-    line = 0
-    lines = None
-
-
-class _Seq(list):
-    """A YAML sequence that remembers its own line and the line of each item."""
-    line = 0
-    lines = None
-
-
-class _Loader(yaml.SafeLoader):
-    pass
-
-
-class _KeyError(ConfigError):
-    """A key the loader cannot take, at a line."""
-
-    def __init__(self, line, message):
-        super().__init__(message)
-        self.line = line
-
-
-def _mapping(loader, node):
-    loader.flatten_mapping(node)
-    out = _Map()
-    out.line, out.lines = node.start_mark.line + 1, {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if not isinstance(key, (str, int, float, bool)) or key is None:
-            raise _KeyError(key_node.start_mark.line + 1, f"a key must be a word, got {key!r}")
-        if key in out:
-            raise _KeyError(key_node.start_mark.line + 1, f"key {key!r} is given twice (first on line "
-                                                          f"{out.lines[key]}); keep one")
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.lines[key] = key_node.start_mark.line + 1
-    return out
-
-
-def _sequence(loader, node):
-    out = _Seq(loader.construct_object(child, deep=True) for child in node.value)
-    out.line, out.lines = node.start_mark.line + 1, [child.start_mark.line + 1 for child in node.value]
-    return out
-
-
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _sequence)
 
 
 def scenario_names():
@@ -95,13 +46,13 @@ def load_scenario(path_or_name) -> ScenarioConfig:
     source = resolve_scenario(path_or_name)
     try:
         with open(source, encoding="utf-8") as fh:
-            data = yaml.load(fh, Loader=_Loader)   # noqa: S506 (a SafeLoader that keeps line numbers)
+            data = load_with_lines(fh)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}" if mark is not None else source
         raise ConfigError(f"{where}: not valid YAML: {getattr(exc, 'problem', None) or exc}; fix the syntax "
                           f"there") from None
-    except _KeyError as exc:
+    except YamlKeyError as exc:
         raise ConfigError(f"{source}:{exc.line}: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{source}: cannot read it as a UTF-8 text file: {exc}") from None
@@ -116,9 +67,9 @@ class _Reader:
 
     def fail(self, container, key, path, message):
         line = None
-        if isinstance(container, _Map):
+        if isinstance(container, LineMap):
             line = container.lines.get(key, container.line)
-        elif isinstance(container, _Seq):
+        elif isinstance(container, LineSeq):
             line = container.lines[key] if isinstance(key, int) and key < len(container.lines) else container.line
         at = f"{self.source}:{line}" if line else self.source
         raise ConfigError(f"{at}: {path}: {message}")

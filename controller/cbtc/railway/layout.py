@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from cbtc.errors import LayoutError
 from cbtc.railway.geometry import Path, forward_m
+from cbtc.railway.track_graph import single_section_graph
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,8 @@ class Layout:
         self.tags = tuple(sorted(tags, key=lambda t: t.s_m))
         self.blocks = tuple(blocks)
         self.ips = ips
+        self.is_network = False
+        self.graph = single_section_graph(path)   # the path as a track graph: one section, "main"
         self._tags_by_uid = {t.uid: t for t in self.tags}
         self._stations_by_name = {st.name: st for st in self.stations}
         # wrap(s_m): closed, `s_m` modulo the length; open, clipped to [0, length]; float or numpy array. The path's

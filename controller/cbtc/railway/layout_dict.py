@@ -35,18 +35,20 @@ MIN_WINDOW_M = 0.01   # a board holds a train that braked onto its mark up to 3 
 TOP_KEYS = ("name", "closed", "start", "segments", "stations", "tags", "blocks", "ips")
 
 
-class _Reader:
+class Reader:
     """Typed access to the YAML tree that names the file and the key path in every error."""
 
     def __init__(self, source):
         self.source = source
+        self.line = 0     # the line of the item being read, where the tree keeps lines (0: name no line)
 
     def fail(self, key, message):
-        raise LayoutError(f"{self.source}: {key}: {message}")
+        where = f"{self.source}:{self.line}" if self.line else self.source
+        raise LayoutError(f"{where}: {key}: {message}")
 
     def mapping(self, value, where, allowed):
         if not isinstance(value, dict):
-            self.fail(where, f"must be a mapping of {', '.join(allowed)}, got {_kind(value)}")
+            self.fail(where, f"must be a mapping of {', '.join(allowed)}, got {kind_of(value)}")
         for key in value:
             if key not in allowed:
                 near = difflib.get_close_matches(str(key), allowed, n=1)
@@ -56,7 +58,7 @@ class _Reader:
 
     def sequence(self, value, where):
         if not isinstance(value, list):
-            self.fail(where, f"must be a list, got {_kind(value)}")
+            self.fail(where, f"must be a list, got {kind_of(value)}")
         return value
 
     def number(self, mapping, key, where, positive=False, default=None):
@@ -79,16 +81,16 @@ class _Reader:
         return value
 
 
-def _kind(value):
+def kind_of(value):
     return "nothing" if value is None else type(value).__name__
 
 
-def _segments(r: _Reader, items):
+def read_segments(r: Reader, items, key="segments"):
     segments = []
-    for i, item in enumerate(r.sequence(items, "segments")):
-        where = f"segments[{i}]"
+    for i, item in enumerate(r.sequence(items, key)):
+        where = f"{key}[{i}]"
         if not isinstance(item, dict):
-            r.fail(where, f"must be a mapping such as {{straight: {{length_m: 1.2}}}}, got {_kind(item)}")
+            r.fail(where, f"must be a mapping such as {{straight: {{length_m: 1.2}}}}, got {kind_of(item)}")
         kinds = [k for k in ("straight", "arc", "piece") if k in item]
         if len(kinds) != 1:
             r.fail(where, "needs exactly one of 'straight', 'arc' or 'piece'" + (f", got {kinds}" if kinds else ""))
@@ -107,7 +109,7 @@ def _segments(r: _Reader, items):
         else:
             segments.extend(_piece(r, item, where))
     if not segments:
-        r.fail("segments", "is empty: list at least one segment")
+        r.fail(key, "is empty: list at least one segment")
     return segments
 
 
@@ -134,16 +136,16 @@ def _piece(r, item, where):
     return [("arc", spec[1], angle_rad)] * count
 
 
-def layout_from_dict(data, source="<dict>") -> Layout:
-    """Validate a layout given as the parsed YAML tree; `source` names it in error messages."""
-    r = _Reader(source)
+def layout_from_dict(data, source="<dict>"):
+    """Validate a layout given as the parsed YAML tree; `source` names it in error messages. A Layout (one path), or
+    a NetworkLayout where the file has `track:` (sections and switches)."""
+    r = Reader(source)
     if data is None:
         r.fail("top level", "the file is empty: write a layout (see docs/layouts.md)")
+    if isinstance(data, dict) and "track" in data:
+        return _network(r, data, source)
     data = r.mapping(data, "top level", TOP_KEYS)
-    default_name = os.path.basename(source)[:-5] if source.endswith(".yaml") else source
-    name = data.get("name", default_name)
-    if not isinstance(name, str) or not name:
-        r.fail("name", f"must be a non-empty string, got {name!r}")
+    name = _name(r, data, source)
     if "closed" not in data:
         r.fail("closed", "missing: write closed: true for a loop or closed: false for an open line")
     closed = data["closed"]
@@ -151,7 +153,7 @@ def layout_from_dict(data, source="<dict>") -> Layout:
         r.fail("closed", f"must be true (a loop) or false (an open line), got {closed!r}")
     if "segments" not in data:
         r.fail("segments", "missing: list the track as straights and arcs, or LEGO pieces")
-    segments = _segments(r, data["segments"])
+    segments = read_segments(r, data["segments"])
     start = r.mapping(data.get("start", {}), "start", ("x_m", "y_m", "heading_deg"))
     path = Path(segments, r.number(start, "x_m", "start", default=0.0), r.number(start, "y_m", "start", default=0.0),
                 math.radians(r.number(start, "heading_deg", "start", default=0.0)), closed=closed)
@@ -161,8 +163,28 @@ def layout_from_dict(data, source="<dict>") -> Layout:
     stations = _stations(r, data.get("stations", []), length, closed)
     tags = _tags(r, data.get("tags", []), length, closed)
     blocks = _blocks(r, data.get("blocks", []), length, closed)
-    ips = _ips(r, data.get("ips", {}))
+    ips = read_ips(r, data.get("ips", {}))
     return Layout(name, source, path, stations, tags, blocks, ips)
+
+
+def _name(r, data, source):
+    default_name = os.path.basename(source)[:-5] if source.endswith(".yaml") else source
+    name = data.get("name", default_name)
+    if not isinstance(name, str) or not name:
+        r.fail("name", f"must be a non-empty string, got {name!r}")
+    return name
+
+
+def _network(r, data, source):
+    """A track network (switches, several sections): `track:` instead of `segments:`."""
+    from cbtc.railway.network_dict import network_from_dict
+
+    both = [k for k in ("segments", "closed", "start", "blocks") if k in data]
+    if both:
+        r.line = getattr(data, "lines", None) and data.lines.get(both[0], 0)
+        r.fail(both[0], "belongs to a single-path layout, not a track network (`track:`): give the pieces as "
+                        "sections under track (see docs/layouts.md), or drop track and keep segments")
+    return network_from_dict(data, source, _name(r, data, source))
 
 
 def _check_closes(r, path):
@@ -208,21 +230,26 @@ def _tags(r, items, length, closed):
     for i, item in enumerate(r.sequence(items, "tags")):
         where = f"tags[{i}]"
         item = r.mapping(item, where, ("uid", "s_m"))
-        if "uid" not in item:
-            r.fail(f"{where}.uid", "missing: add the tag's uid as a quoted hex string, e.g. '04A1B2C3'")
-        uid = item["uid"]
-        if not isinstance(uid, str):
-            r.fail(f"{where}.uid", f"must be a quoted hex string such as '04A1B2C3', got {uid!r} (unquoted, YAML "
-                                   "reads hex digits as a number)")
-        if len(uid) not in wire_zc.UID_HEX_LENGTHS or any(c not in "0123456789abcdefABCDEF" for c in uid):
-            r.fail(f"{where}.uid", f"must be a 4, 7 or 10-byte uid in hex (8, 14 or 20 digits) such as '04A1B2C3', "
-                                   f"as the reader prints it; got {uid!r}")
-        uid = uid.upper()
+        uid = read_tag_uid(r, item, where)
         if uid in uids:
             r.fail(f"{where}.uid", f"duplicate uid {uid}: each tag needs its own")
         uids.add(uid)
         tags.append(Tag(uid, _on_track(r, r.number(item, "s_m", where), f"{where}.s_m", length, closed)))
     return tags
+
+
+def read_tag_uid(r, item, where):
+    """The tag's uid, upper-case hex, checked."""
+    if "uid" not in item:
+        r.fail(f"{where}.uid", "missing: add the tag's uid as a quoted hex string, e.g. '04A1B2C3'")
+    uid = item["uid"]
+    if not isinstance(uid, str):
+        r.fail(f"{where}.uid", f"must be a quoted hex string such as '04A1B2C3', got {uid!r} (unquoted, YAML "
+                               "reads hex digits as a number)")
+    if len(uid) not in wire_zc.UID_HEX_LENGTHS or any(c not in "0123456789abcdefABCDEF" for c in uid):
+        r.fail(f"{where}.uid", f"must be a 4, 7 or 10-byte uid in hex (8, 14 or 20 digits) such as '04A1B2C3', "
+                               f"as the reader prints it; got {uid!r}")
+    return uid.upper()
 
 
 def _blocks(r, spec, length, closed):
@@ -282,7 +309,7 @@ def _blocks(r, spec, length, closed):
     return tuple(joined)
 
 
-def _ips(r, spec):
+def read_ips(r, spec):
     spec = r.mapping(spec, "ips", ("origin_x_m", "origin_y_m", "rotation_deg", "beacons"))
     beacons = []
     for i, b in enumerate(r.sequence(spec.get("beacons", []), "ips.beacons")):
