@@ -196,3 +196,39 @@ def test_commands_that_run_paths_refuse_a_network_cleanly(capsys):
     assert cbtc_main(["sim", "--layout", "lego_passing_loop", "--trains", "2", "--duration", "1"]) == 2
     err = capsys.readouterr().err
     assert "is a track network" in err and "cbtc layout list" in err and "Traceback" not in err
+
+
+def test_ips_fixes_project_onto_the_sections_the_train_can_be_on():
+    layout = load_track("lego_passing_loop")
+    g = layout.graph
+    # between the two platforms, 64 mm from each: the nearest track decides only among the candidates given
+    x, y = layout.xy_m("platform_main", 0.45)
+    fix = (x, y + 0.06)
+    assert g.project(*fix)[0] == "platform_main"
+    name, offset, distance = g.project(*fix, sections=["platform_loop", "W1.diverging"])
+    assert name == "platform_loop" and distance == pytest.approx(0.128 - 0.06, abs=1e-3)
+    assert math.dist(layout.xy_m(name, offset), (x, 0.128)) < 1e-3
+
+
+def test_what_lies_ahead_on_a_route():
+    from cbtc.railway.ahead import look_ahead, trains_ahead
+
+    assert trains_ahead([0.5, 2.0, 1.0], closed=True) == {0: 2, 2: 1, 1: 0}
+    assert trains_ahead([0.5, 2.0, 1.0], closed=False) == {0: 2, 2: 1}
+    g = load_track("lego_branch").graph
+    route = g.route([("west_line", True), ("W1.straight", True), ("middle_main", True), ("W2.straight", False),
+                     ("east_line", True)])
+    spans = {"A": (("middle_main", 0.5, 0.7),), "B": (("middle_loop", 0.6, 0.7633), ("W2.diverging", 0.0, 0.2862)),
+             "C": (("west_line", 0.0, 0.2),)}
+    ahead = look_ahead(route, 0.5, spans, own="C")
+    # B, converging on W2 from the loop, fouls the route where it enters W2; A is on the route itself
+    assert ahead.trains == (("A", pytest.approx(1.024 - 0.5 + 0.256 + 0.5)), ("B", pytest.approx(2.048 - 0.5)))
+    assert [(w, round(d, 4), leg) for w, d, leg in ahead.switches] == [("W1", 0.524, "straight"),
+                                                                      ("W2", 1.548, "straight")]
+    assert ahead.end_m == pytest.approx(route.length_m - 0.5)
+    # a switch not detected in the route's leg ends the limit before any train past it
+    assert ahead.first_limit_m({"W1": "diverging", "W2": "straight"}) == pytest.approx(0.524)
+    assert ahead.first_limit_m({"W1": "straight", "W2": "straight"}) == pytest.approx(1.28)
+    # past W1, on its leg: the switch is at distance 0; a train behind is not ahead
+    on_w1 = look_ahead(route, 1.1, {"C": (("west_line", 0.0, 0.2),)})
+    assert on_w1.switches[0] == ("W1", 0.0, "straight") and on_w1.trains == ()

@@ -113,6 +113,19 @@ class TrackGraph:
                 return ()          # trailing through a switch set against the train: a run-through, not a move
         return tuple(out)
 
+    def project(self, x_m, y_m, sections=None):
+        """(section, offset_m, distance_m) of the track point nearest to (x_m, y_m) on `sections` (the ones the
+        train can be on; None: every section): an IPS fix lands on the track the train may be on, not the nearest."""
+        best = None
+        for name in (self.sections if sections is None else sections):
+            path = self.sections[name].path
+            offset = path.project(float(x_m), float(y_m))
+            px, py = path.xy_m(offset)
+            d = hypot(px - x_m, py - y_m)
+            if best is None or d < best[2]:
+                best = (name, offset, d)
+        return best
+
     def is_closed_cycle(self, steps):
         """True when the route `steps` returns to where it started, running on in the same direction."""
         section, forward = steps[-1]

@@ -1,19 +1,13 @@
 """Truth of virtual trains: which train is ahead of which, collisions, and how far each board moved past its end
 of authority. The recorder of a simulated run and the virtual trains on a real broker both count collisions here."""
 
+from cbtc.railway.ahead import trains_ahead
+
 
 def train_ahead(layout, heads_m):
     """{i: j}: the index of the train ahead of train i, for trains with heads at `heads_m` (on a line, the front train
-    has none)."""
-    order = sorted(range(len(heads_m)), key=lambda i: heads_m[i])
-    ahead = {}
-    if len(order) < 2:
-        return ahead
-    for rank, i in enumerate(order):
-        if rank == len(order) - 1 and not layout.closed:
-            continue
-        ahead[i] = order[(rank + 1) % len(order)]
-    return ahead
+    has none): railway's one answer to what lies ahead."""
+    return trains_ahead(heads_m, layout.closed)
 
 
 def head_inside(layout, head_s_m, ahead_tail_s_m, ahead_length_m) -> bool:

@@ -4,6 +4,8 @@ trains in order along the track (TrainOrder), and the age of every train's newes
 from bisect import bisect_left, bisect_right
 from heapq import heappop, heappush
 
+from cbtc.railway.ahead import ahead_index
+
 
 class TrainOrder:
     def __init__(self, closed: bool):
@@ -45,9 +47,8 @@ class TrainOrder:
     def leader_of(self, located, i):
         """The train ahead of `located[i]` (ordered by head position), or None: alone, or at the front of an open
         line, where the end of the track limits it."""
-        if len(located) < 2 or (i == len(located) - 1 and not self.closed):
-            return None
-        return located[(i + 1) % len(located)]
+        j = ahead_index(len(located), i, self.closed)
+        return None if j is None else located[j]
 
 
 class ReportAges:
