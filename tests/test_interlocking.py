@@ -13,8 +13,8 @@ from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, ru
 
 from cbtc.layout_files import load_track
 from cbtc.railway.interlocking import Interlocking, find_routes
-from cbtc.railway.layout_dict import layout_from_dict
 from cbtc.railway.track_graph import LEGS
+from network_model import ELEMENTS, Train, network
 
 BOUNDED = settings(max_examples=60, stateful_step_count=40, deadline=None, derandomize=True, database=None,
                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
@@ -113,83 +113,6 @@ def test_find_routes_through_the_passing_loop():
     assert {r[4][0] for r in routes} == {"middle_main", "middle_loop"}
 
 
-# --- random networks from the pieces -----------------------------------------------------------------------------
-
-def network(elements):
-    """A line of LEGO pieces from `elements`: ("run", n straights), ("loop", n: a passing loop on the left),
-    ("siding", a stub on the right ending at a buffer stop); buffer stops at both ends of the line."""
-    track = [{"section": "s0", "start": {"x_m": 0.0, "y_m": 0.0, "heading_deg": 0},
-              "segments": [{"piece": "straight", "count": 2}]}]
-    buffers, here = ["s0.start"], "s0.end"
-    for i, (kind, n) in enumerate(elements):
-        if kind == "run":
-            track.append({"section": f"r{i}", "from": here, "segments": [{"piece": "straight", "count": n}]})
-            here = f"r{i}.end"
-        elif kind == "loop":
-            track += [{"switch": f"A{i}", "piece": "switch_left", "at": here},
-                      {"section": f"m{i}", "from": f"A{i}.straight",
-                       "segments": [{"piece": "straight", "count": n + 2}]},
-                      {"switch": f"B{i}", "piece": "switch_right", "at": f"m{i}.end", "by": "straight"},
-                      {"section": f"l{i}", "from": f"A{i}.diverging",
-                       "segments": [{"piece": "curve_r40", "turn": "right"}, {"piece": "straight", "count": n},
-                                    {"piece": "curve_r40", "turn": "right"}]}]
-            here = f"B{i}.toe"
-        else:
-            track += [{"switch": f"S{i}", "piece": "switch_right", "at": here},
-                      {"section": f"d{i}", "from": f"S{i}.diverging",
-                       "segments": [{"piece": "curve_r40", "turn": "left"}, {"piece": "straight"}]},
-                      {"section": f"t{i}", "from": f"S{i}.straight", "segments": [{"piece": "straight", "count": 4}]}]
-            buffers.append(f"d{i}.end")
-            here = f"t{i}.end"
-    track.append({"section": "end", "from": here, "segments": [{"piece": "straight", "count": 2}]})
-    buffers.append("end.end")
-    return layout_from_dict({"name": "random", "track": track, "buffers": buffers}, "random.yaml").graph
-
-
-ELEMENTS = st.lists(st.one_of(st.tuples(st.just("run"), st.integers(1, 3)),
-                              st.tuples(st.just("loop"), st.integers(1, 4)),
-                              st.tuples(st.just("siding"), st.just(0))), min_size=1, max_size=5)
-
-
-class Train:
-    """A model train: the steps it has run (a route on the graph), its head's coordinate along them, its length and
-    its uncertainty (its span is widened by it both ways)."""
-
-    def __init__(self, graph, step, head_m, length_m, sigma_m):
-        self.graph, self.steps, self.head_m = graph, [step], head_m
-        self.length_m, self.sigma_m = length_m, sigma_m
-
-    def advance(self, d_m, switch_legs):
-        self.head_m += d_m
-        while True:
-            route = self.graph.route(self.steps)
-            if self.head_m <= route.length_m:
-                return
-            nxt = self.graph.next_steps(*self.steps[-1], switch_legs)
-            nxt = [s for s in nxt if s[0] not in {n for n, _f in self.steps}]
-            if not nxt:                      # a buffer stop or a switch set against it: it stops there
-                self.head_m = route.length_m
-                return
-            self.steps.append(nxt[0])
-
-    def span(self):
-        route = self.graph.route(self.steps)
-        lo, hi = max(0.0, self.head_m - self.length_m - self.sigma_m), self.head_m + self.sigma_m
-        out = []
-        for (name, forward), start in zip(route.steps, route.starts_m):
-            length = self.graph.sections[name].length_m
-            a, b = max(lo, start), min(hi, start + length)
-            if a <= b:
-                out.append((name, a - start, b - start) if forward else (name, start + length - b,
-                                                                          start + length - a))
-        excess = hi - route.length_m
-        if excess > 0:                      # ahead of the head: every way it could go, whatever the switches
-            for name, forward in self.graph.next_steps(*route.steps[-1]):
-                length = self.graph.sections[name].length_m
-                out.append((name, 0.0, min(excess, length)) if forward else (name, max(0.0, length - excess), length))
-        return tuple(out)
-
-
 class InterlockingMachine(RuleBasedStateMachine):
     @initialize(elements=ELEMENTS, data=st.data())
     def build(self, elements, data):
@@ -269,18 +192,27 @@ class InterlockingMachine(RuleBasedStateMachine):
                 not any(s in touched for s in names), f"{section} released ahead of train {owner}"
         self.ixl.advance(spans, self.now_s)
 
+    def _extends(self, a, b, name, i):
+        ra, rb = self.ixl.routes[a], self.ixl.routes[b]
+        return ra.train == rb.train and ((i == 0 and ra.held_steps[-1][0] == name) or
+                                         (rb.held_steps[-1][0] == name and ra.held_steps[0][0] == name))
+
     @invariant()
     def no_two_locked_routes_conflict(self):
         if not hasattr(self, "ixl"):
             return
         held_sections, held_switches = {}, {}
         for rid, route in self.ixl.routes.items():
-            for name, _f in route.held_steps:
-                assert name not in held_sections, f"{name} held by {held_sections.get(name)} and {rid}"
+            for i, (name, _f) in enumerate(route.held_steps):
+                other = held_sections.get(name)
+                # one train's route may extend another of its own, from that one's last section
+                assert other is None or self._extends(other, rid, name, i), f"{name} held by {other} and {rid}"
                 held_sections[name] = rid
                 switch = self.graph.sections[name].switch
                 if switch:
-                    assert held_switches.get(switch, rid) == rid, f"switch {switch} in two routes"
+                    other = held_switches.get(switch, rid)
+                    assert other == rid or self.ixl.routes[other].train == route.train, \
+                        f"switch {switch} in two trains' routes"
                     held_switches[switch] = rid
                     assert self.ixl.switch_leg[switch] == route.switch_legs[switch], \
                         f"switch {switch} not in route {rid}'s position"

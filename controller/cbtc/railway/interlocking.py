@@ -7,8 +7,9 @@ hi_m), ...)) reaches either of its legs, the whole switch piece counting as insi
 each switch in a set route is its flank: no route over it can be set while the switch is locked, and a train on it
 makes the switch not free. A route releases step by step behind its train: a step is released once the train's span
 has reached a later step and no longer touches it. A switch moves only when set_route or move_switch find it unlocked
-and unoccupied. Cancelling a route its train is on is refused; cancelling one the train is approaching (the caller
-says so: it could not stop short of the route) releases after `approach_release_s`. Time is passed in.
+and unoccupied. A route may begin on the last section of a route its train holds, extending it. Cancelling a route
+its train is on is refused; cancelling one the train is approaching (the caller says so: it could not stop short of
+the route) releases after `approach_release_s`. Time is passed in.
 """
 
 from dataclasses import dataclass, field
@@ -60,6 +61,16 @@ class Interlocking:
 
     # --- what is held ------------------------------------------------------------------------------------------
 
+    def held_by(self, train):
+        """The steps the routes of `train` hold, in the order they were set, a route that extends another joined to
+        it on their shared section."""
+        steps = []
+        for route in self.routes.values():
+            if route.train == train:
+                held = route.held_steps
+                steps.extend(held[1:] if steps and held and held[0] == steps[-1] else held)
+        return tuple(steps)
+
     def route_of_section(self, section):
         """The route holding `section`, or None."""
         for route in self.routes.values():
@@ -105,14 +116,16 @@ class Interlocking:
                 if needs.get(sec.switch, sec.leg) != sec.leg:
                     return Outcome(False, f"route {route_id} runs over both legs of switch {sec.switch}")
                 needs[sec.switch] = sec.leg
-        for name in names:
+        for i, name in enumerate(names):
             other = self.route_of_section(name)
-            if other is not None:
+            if other is not None and not (i == 0 and other.train == train and other.held_steps[-1][0] == name):
+                # (a route may begin on the last section of one its train holds: it extends it)
                 return Outcome(False, f"route {route_id} conflicts with route {other.id} (train {other.train}), "
                                       f"which holds section {name}")
         for switch, leg in needs.items():
             other = self.switch_lock(switch)
-            if other is not None:
+            if other is not None and not (other.train == train and other.switch_legs.get(switch) == leg
+                                          and names[0].startswith(f"{switch}.")):
                 return Outcome(False, f"route {route_id} conflicts with route {other.id} (train {other.train}), "
                                       f"which holds switch {switch} {other.switch_legs.get(switch, '')}")
             on = self.trains_on_switch(switch, spans)

@@ -1,0 +1,36 @@
+"""Moving block on a track network: where a train's authority ends along the route the interlocking holds for it.
+
+The limit is the first of: the rear-most plausible tail of any other train whose span (widened by its uncertainty)
+lies on the route ahead or fouls it at a switch the route runs through (a train converging on the other leg of a
+merge included), a switch whose detected position is not the route's leg (moving, detection lost, wrong leg), the end
+of the held route (the end of the track included: a route ends at a buffer stop at the latest). Pure: values in.
+"""
+
+from dataclasses import dataclass
+
+from cbtc.railway.ahead import look_ahead
+
+
+@dataclass(frozen=True)
+class NetworkLimit:
+    distance_m: float   # from the front-most plausible head, along the route
+    reason: str         # what bounds it, in words
+
+
+def network_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
+    """The end of authority of train `own` with its front-most plausible head at `head_s_m` on `route` (the steps the
+    interlocking holds for it, from the section its head is on). `spans`: every train's span, widened; `detected_legs`:
+    switch -> leg its detection reports (None while moving or lost)."""
+    ahead = look_ahead(route, head_s_m, spans, own)
+    best = NetworkLimit(ahead.end_m, "the end of the route the interlocking holds for it")
+    if ahead.trains and ahead.trains[0][1] < best.distance_m:
+        train, distance = ahead.trains[0]
+        best = NetworkLimit(distance, f"the rear-most plausible tail of train {train}")
+    for switch, distance, leg in ahead.switches:
+        detected = detected_legs.get(switch)
+        if detected != leg:
+            if distance < best.distance_m:
+                state = "moving or its detection lost" if detected is None else f"detected {detected}"
+                best = NetworkLimit(distance, f"switch {switch}: the route needs {leg}, it is {state}")
+            break
+    return best
