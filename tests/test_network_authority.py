@@ -11,6 +11,7 @@ import pytest
 from cbtc.authority.network_limit import network_limit
 from cbtc.layout_files import load_track
 from cbtc.railway.interlocking import Interlocking, find_routes
+from cbtc.sim.switch_machines import SWITCH_FAULTS, SwitchMachine
 from network_model import Train
 
 DT_S, V_MAX_MPS, ACCEL_MPS2, BRAKE_MPS2, MARGIN_M, SIGMA_M = 0.05, 0.3, 0.5, 0.4, 0.05, 0.02
@@ -78,18 +79,28 @@ def _collisions(graph, spans):
     return found
 
 
-def run(layout_name, placements, plans, seconds):
-    """Model trains under the interlocking and the network limit for `seconds`; returns the counts."""
+def run(layout_name, placements, plans, seconds, faults=None):
+    """Model trains under the interlocking and the network limit for `seconds`, switches thrown by simulated
+    machines (`faults`: switch -> (fault, at_s)); returns the counts and each train's last state."""
     graph = load_track(layout_name).graph
     ixl = Interlocking(graph)
+    machines = {w: SwitchMachine(w) for w in graph.switches}
+    for w, (fault, at_s) in (faults or {}).items():
+        machines[w].fault, machines[w].fault_at_s = fault, at_s
     trains = {t: RunningTrain(graph, step, head_m, 0.25, SIGMA_M) for t, (step, head_m) in placements.items()}
     target = {t: 0 for t in trains}
     v = {t: 0.0 for t in trains}
-    stats = {"collisions": [], "overruns": [], "arrivals": {t: 0 for t in trains}, "min_v_limit": {}, "reasons": set()}
+    stats = {"collisions": [], "overruns": [], "arrivals": {t: 0 for t in trains}, "reasons": set(),
+             "switch_violations": [], "trains": trains, "v": v}
     for t, tr in trains.items():          # each train placed holds the section it stands on
         assert ixl.set_route(f"{t}0", t, (tr.steps[-1],), {}, 0.0).ok
     count, waiting_since = 0, {}
     for tick in range(int(seconds / DT_S)):
+        now_s = tick * DT_S
+        for m in machines.values():
+            m.step(now_s)
+        detected = {w: m.detected(now_s) for w, m in machines.items()}
+        physical = {w: m.physical(now_s) for w, m in machines.items()}
         spans = {t: tr.span() for t, tr in trains.items()}
         ixl.release_behind(spans)
         for t in sorted(trains, key=lambda t: waiting_since.setdefault(t, tick)):   # first come, first served
@@ -104,7 +115,10 @@ def run(layout_name, placements, plans, seconds):
                 start = held[-1] if held else tr.steps[-1]
                 for steps in find_routes(graph, start, goal):
                     count += 1
-                    if ixl.set_route(f"R{count}", t, steps, spans, tick * DT_S).ok:
+                    out = ixl.set_route(f"R{count}", t, steps, spans, now_s)
+                    if out.ok:
+                        for w, leg in out.moves:
+                            machines[w].command(leg, now_s)
                         waiting_since.pop(t)
                         break
         for t, tr in trains.items():
@@ -114,11 +128,18 @@ def run(layout_name, placements, plans, seconds):
                 v[t] = 0.0
                 continue
             k = held.index(tr.steps[-1])
-            limit = network_limit(graph.route(held[k:]), tr.head_into_m() + SIGMA_M, t, spans, ixl.switch_leg)
+            limit = network_limit(graph.route(held[k:]), tr.head_into_m() + SIGMA_M, t, spans, detected)
             stats["reasons"].add(limit.reason.split(":")[0].split(" of train")[0])
             allowed = math.sqrt(2.0 * BRAKE_MPS2 * max(limit.distance_m - MARGIN_M, 0.0))
             v[t] = max(min(v[t] + ACCEL_MPS2 * DT_S, V_MAX_MPS, allowed), v[t] - BRAKE_MPS2 * DT_S, 0.0)
-            tr.advance(v[t] * DT_S, ixl.switch_leg)
+            before = tr.steps[-1]
+            tr.advance(v[t] * DT_S, physical)
+            head = graph.sections[tr.steps[-1][0]]
+            if tr.steps[-1] != before and head.switch and physical[head.switch] != head.leg:
+                stats["switch_violations"].append((now_s, t, head.name, physical[head.switch]))
+            if v[t] > 0 and not graph.next_steps(*tr.steps[-1], physical) and graph.next_steps(*tr.steps[-1]) and \
+                    tr.head_into_m() >= graph.sections[tr.steps[-1][0]].length_m - 1e-9:
+                stats["switch_violations"].append((now_s, t, "ran into a switch that is not set", tr.steps[-1]))
         stats["collisions"] += _collisions(graph, _truth_spans(trains, 0.0))
     return stats
 
@@ -129,9 +150,10 @@ def test_two_trains_converging_on_one_switch_both_moving():
     # has cleared the switch
     stats = run("lego_passing_loop", {"A": (("platform_main", True), 0.5), "B": (("platform_loop", True), 0.45)},
                 {"A": ["main", "platform_main"], "B": ["main", "platform_loop"]}, 60.0)
-    assert stats["collisions"] == [] and stats["overruns"] == []
+    assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
     assert min(stats["arrivals"].values()) >= 2, stats["arrivals"]       # both went through W2, and came round
-    assert stats["reasons"] == {"the end of the route the interlocking holds for it"}
+    # each waits at the end of its held route, or for a switch still moving
+    assert stats["reasons"] <= {"the end of the route the interlocking holds for it", "switch W1", "switch W2"}
 
 
 def test_the_limit_alone_keeps_converging_trains_apart(monkeypatch):
@@ -150,3 +172,26 @@ def test_two_trains_circulate_the_passing_loop_on_their_own_platforms():
                 {"A": ["platform_main", "main"], "B": ["platform_loop", "main"]}, 120.0)
     assert stats["collisions"] == [] and stats["overruns"] == []
     assert min(stats["arrivals"].values()) >= 4, stats["arrivals"]
+
+
+@pytest.mark.parametrize("fault", SWITCH_FAULTS)
+@pytest.mark.parametrize("leg", ["straight", "diverging"])
+def test_a_switch_failing_as_a_train_approaches_stops_it_before_the_switch(fault, leg):
+    # A runs along main for W1 and the platform on `leg`; W1 fails 2 s in, with A about 0.5 m short of it
+    platform = "platform_main" if leg == "straight" else "platform_loop"
+    stats = run("lego_passing_loop", {"A": (("main", True), 2.8)}, {"A": [platform, "main"]}, 20.0,
+                faults={"W1": (fault, 2.0 if fault != "switch_stall" else 0.0)})
+    train = stats["trains"]["A"]
+    assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
+    if fault == "switch_stall" and leg == "straight":
+        assert stats["arrivals"]["A"] >= 1        # W1 lay straight already: no move, nothing to stall
+        return
+    assert train.steps[-1] == ("main", True) and stats["v"]["A"] == 0.0     # stopped on main, short of W1
+    short_m = train.graph.sections["main"].length_m - train.head_into_m()
+    assert SIGMA_M < short_m < 0.2, short_m
+    assert any(r.startswith("switch W1") for r in stats["reasons"])
+
+
+def test_a_switch_that_moves_in_time_lets_the_train_through():
+    stats = run("lego_passing_loop", {"A": (("main", True), 2.8)}, {"A": ["platform_loop", "main"]}, 30.0)
+    assert stats["switch_violations"] == [] and stats["arrivals"]["A"] >= 2
