@@ -79,3 +79,59 @@ class Train:
                 length = self.graph.sections[name].length_m
                 out.append((name, 0.0, min(excess, length)) if forward else (name, max(0.0, length - excess), length))
         return tuple(out)
+
+
+class RunningTrain(Train):
+    """A model train that may come round again: its history keeps only the steps its tail still needs."""
+
+    def advance(self, d_m, switch_legs):
+        self.head_m += d_m
+        while True:
+            route = self.graph.route(self.steps)
+            if self.head_m <= route.length_m:
+                break
+            nxt = self.graph.next_steps(*self.steps[-1], switch_legs)
+            if not nxt:
+                self.head_m = route.length_m
+                break
+            self.steps.append(nxt[0])
+        while len(self.steps) > 1:
+            first = self.graph.sections[self.steps[0][0]].length_m
+            if self.head_m - self.length_m - 0.5 < first:
+                break
+            self.steps.pop(0)
+            self.head_m -= first
+
+    def reverse(self):
+        """Run the other way: the tail becomes the head, every step is run backwards."""
+        route = self.graph.route(self.steps)
+        self.steps = [(name, not fwd) for name, fwd in reversed(self.steps)]
+        self.head_m = route.length_m - (self.head_m - self.length_m)
+
+    def head_into_m(self):
+        return self.head_m - self.graph.route(self.steps).starts_m[-1]
+
+
+def truth_spans(trains, sigma_m):
+    """Every train's span widened by `sigma_m` (0: its true extent)."""
+    out = {}
+    for t, train in trains.items():
+        keep = train.sigma_m
+        train.sigma_m = sigma_m
+        out[t] = train.span()
+        train.sigma_m = keep
+    return out
+
+
+def collisions(graph, spans):
+    """(a, b, section, section) of every two trains on one stretch of one section, or on one switch piece."""
+    found = []
+    names = sorted(spans)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            for sa, lo_a, hi_a in spans[a]:
+                for sb, lo_b, hi_b in spans[b]:
+                    same_switch = graph.sections[sa].switch and graph.sections[sa].switch == graph.sections[sb].switch
+                    if (sa == sb and lo_a < hi_b and lo_b < hi_a) or same_switch:
+                        found.append((a, b, sa, sb))
+    return found

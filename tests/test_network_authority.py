@@ -12,7 +12,7 @@ from cbtc.authority.network_limit import network_limit
 from cbtc.layout_files import load_track
 from cbtc.railway.interlocking import Interlocking, find_routes
 from cbtc.sim.switch_machines import SWITCH_FAULTS, SwitchMachine
-from network_model import Train
+from network_model import RunningTrain, collisions, truth_spans
 
 DT_S, V_MAX_MPS, ACCEL_MPS2, BRAKE_MPS2, MARGIN_M, SIGMA_M = 0.05, 0.3, 0.5, 0.4, 0.05, 0.02
 
@@ -29,54 +29,6 @@ def test_the_limit_names_what_bounds_it():
     assert "detected straight" in limit.reason
     limit = network_limit(route, 0.3, "A", {}, {"W2": "diverging"})
     assert limit.distance_m == pytest.approx(route.length_m - 0.3) and "end of the route" in limit.reason
-
-
-class RunningTrain(Train):
-    """A model train that may come round again: its history keeps only the steps its tail still needs."""
-
-    def advance(self, d_m, switch_legs):
-        self.head_m += d_m
-        while True:
-            route = self.graph.route(self.steps)
-            if self.head_m <= route.length_m:
-                break
-            nxt = self.graph.next_steps(*self.steps[-1], switch_legs)
-            if not nxt:
-                self.head_m = route.length_m
-                break
-            self.steps.append(nxt[0])
-        while len(self.steps) > 1:
-            first = self.graph.sections[self.steps[0][0]].length_m
-            if self.head_m - self.length_m - 0.5 < first:
-                break
-            self.steps.pop(0)
-            self.head_m -= first
-
-    def head_into_m(self):
-        return self.head_m - self.graph.route(self.steps).starts_m[-1]
-
-
-def _truth_spans(trains, sigma_m):
-    out = {}
-    for t, train in trains.items():
-        keep = train.sigma_m
-        train.sigma_m = sigma_m
-        out[t] = train.span()
-        train.sigma_m = keep
-    return out
-
-
-def _collisions(graph, spans):
-    found = []
-    names = sorted(spans)
-    for i, a in enumerate(names):
-        for b in names[i + 1:]:
-            for sa, lo_a, hi_a in spans[a]:
-                for sb, lo_b, hi_b in spans[b]:
-                    same_switch = graph.sections[sa].switch and graph.sections[sa].switch == graph.sections[sb].switch
-                    if (sa == sb and lo_a < hi_b and lo_b < hi_a) or same_switch:
-                        found.append((a, b, sa, sb))
-    return found
 
 
 def run(layout_name, placements, plans, seconds, faults=None):
@@ -140,7 +92,7 @@ def run(layout_name, placements, plans, seconds, faults=None):
             if v[t] > 0 and not graph.next_steps(*tr.steps[-1], physical) and graph.next_steps(*tr.steps[-1]) and \
                     tr.head_into_m() >= graph.sections[tr.steps[-1][0]].length_m - 1e-9:
                 stats["switch_violations"].append((now_s, t, "ran into a switch that is not set", tr.steps[-1]))
-        stats["collisions"] += _collisions(graph, _truth_spans(trains, 0.0))
+        stats["collisions"] += collisions(graph, truth_spans(trains, 0.0))
     return stats
 
 
