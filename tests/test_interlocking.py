@@ -16,7 +16,7 @@ from cbtc.railway.interlocking import Interlocking, find_routes
 from cbtc.railway.track_graph import LEGS
 from network_model import ELEMENTS, Train, network
 
-BOUNDED = settings(max_examples=60, stateful_step_count=40, deadline=None, derandomize=True, database=None,
+BOUNDED = settings(max_examples=150, stateful_step_count=50, deadline=None, derandomize=True, database=None,
                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 LONG = settings(max_examples=2000, stateful_step_count=80, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
@@ -117,7 +117,7 @@ class InterlockingMachine(RuleBasedStateMachine):
     @initialize(elements=ELEMENTS, data=st.data())
     def build(self, elements, data):
         self.graph = network(elements)
-        self.ixl = Interlocking(self.graph)
+        self.ixl = Interlocking(self.graph, following=data.draw(st.booleans()))
         plain = sorted(n for n, s in self.graph.sections.items() if not s.switch)
         self.trains = {}
         for t in range(data.draw(st.integers(1, 3))):
@@ -143,13 +143,14 @@ class InterlockingMachine(RuleBasedStateMachine):
     @rule(data=st.data())
     def request_route(self, data):
         train = data.draw(st.sampled_from(sorted(self.trains)))
-        target = data.draw(st.sampled_from(sorted(self.graph.sections)))
         start = self.trains[train].steps[-1] if data.draw(st.booleans()) else \
             (data.draw(st.sampled_from(sorted(self.graph.sections))), data.draw(st.booleans()))
-        routes = find_routes(self.graph, start, target, max_steps=8)
-        if not routes:
-            return
-        steps = data.draw(st.sampled_from(routes))
+        steps = [start]                       # a random walk on from the start: always a route on the graph
+        for _ in range(data.draw(st.integers(0, 6))):
+            nxt = [s for s in self.graph.next_steps(*steps[-1]) if s[0] not in {n for n, _f in steps}]
+            if not nxt:
+                break
+            steps.append(data.draw(st.sampled_from(nxt)))
         spans = self.spans()
         before = self._before(spans)
         self.count += 1
@@ -197,22 +198,28 @@ class InterlockingMachine(RuleBasedStateMachine):
         return ra.train == rb.train and ((i == 0 and ra.held_steps[-1][0] == name) or
                                          (rb.held_steps[-1][0] == name and ra.held_steps[0][0] == name))
 
+    def _follows(self, a, b, name, forward):
+        ra = self.ixl.routes[a]
+        return self.ixl.following and ra.train != self.ixl.routes[b].train and ra.direction_on(name) == forward
+
     @invariant()
     def no_two_locked_routes_conflict(self):
         if not hasattr(self, "ixl"):
             return
         held_sections, held_switches = {}, {}
         for rid, route in self.ixl.routes.items():
-            for i, (name, _f) in enumerate(route.held_steps):
+            for i, (name, forward) in enumerate(route.held_steps):
                 other = held_sections.get(name)
-                # one train's route may extend another of its own, from that one's last section
-                assert other is None or self._extends(other, rid, name, i), f"{name} held by {other} and {rid}"
+                # one train's route may extend another of its own, from that one's last section; under moving block
+                # another train's route may follow it the same way
+                assert other is None or self._extends(other, rid, name, i) or \
+                    self._follows(other, rid, name, forward), f"{name} held by {other} and {rid}"
                 held_sections[name] = rid
                 switch = self.graph.sections[name].switch
                 if switch:
                     other = held_switches.get(switch, rid)
-                    assert other == rid or self.ixl.routes[other].train == route.train, \
-                        f"switch {switch} in two trains' routes"
+                    assert other == rid or self.ixl.routes[other].train == route.train or \
+                        self._follows(other, rid, name, forward), f"switch {switch} in two trains' routes"
                     held_switches[switch] = rid
                     assert self.ixl.switch_leg[switch] == route.switch_legs[switch], \
                         f"switch {switch} not in route {rid}'s position"

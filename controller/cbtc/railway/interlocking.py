@@ -1,15 +1,17 @@
 """The interlocking of a track network, as pure code: routes locked over sections and switches, released behind trains.
 
 A route is a chain of (section, forward) steps for one train. Setting it is refused, with a reason a user can read,
-when a locked route holds one of its sections or switches, or when a switch it needs is not free: a switch is free when
-no train's span (its estimated extent, already widened by its uncertainty: `spans` maps train -> ((section, lo_m,
-hi_m), ...)) reaches either of its legs, the whole switch piece counting as inside the fouling point. The other leg of
-each switch in a set route is its flank: no route over it can be set while the switch is locked, and a train on it
-makes the switch not free. A route releases step by step behind its train: a step is released once the train's span
-has reached a later step and no longer touches it. A switch moves only when set_route or move_switch find it unlocked
-and unoccupied. A route may begin on the last section of a route its train holds, extending it. Cancelling a route
-its train is on is refused; cancelling one the train is approaching (the caller says so: it could not stop short of
-the route) releases after `approach_release_s`. Time is passed in.
+when a locked route holds one of its sections or switches (unless, under moving block, it runs them the same way:
+the train follows the other one, and its authority ends at that train's tail), or when a switch it needs is not free:
+a switch is free when no train's span (its estimated extent, already widened by its uncertainty: `spans` maps train ->
+((section, lo_m, hi_m), ...)) reaches either of its legs, the whole switch piece counting as inside the fouling point
+(a train ahead running the same way over the same leg aside). The other leg of each switch in a set route is its
+flank: no route over it can be set while the switch is locked, and a train on it makes the switch not free. A route
+releases step by step behind its train: a step is released once the train's span has reached a later step and no
+longer touches it. A switch moves only when set_route or move_switch find it unlocked and unoccupied. A route may
+begin on the last section of a route its train holds, extending it. Cancelling a route its train is on is refused;
+cancelling one the train is approaching (the caller says so: it could not stop short of the route) releases after
+`approach_release_s`. Time is passed in.
 """
 
 from dataclasses import dataclass, field
@@ -41,6 +43,10 @@ class LockedRoute:
     def held_steps(self):
         return self.steps[self.released:]
 
+    def direction_on(self, section):
+        """True (forwards) or False as the route runs over `section` while holding it, None when it does not."""
+        return next((fwd for name, fwd in self.held_steps if name == section), None)
+
     @property
     def flank(self):
         """The legs this route's switches must keep free of other routes: each switch's other leg."""
@@ -51,6 +57,8 @@ class LockedRoute:
 class Interlocking:
     """The switches' set positions and the locked routes of one track graph."""
     graph: TrackGraph
+    following: bool = True     # a route may follow another train the same way over what its route holds (moving
+    #                            block); False: sections are exclusive, blocks behind signals (the fixed-block baseline)
     approach_release_s: float = APPROACH_RELEASE_S
     switch_leg: dict = field(default_factory=dict)    # switch id -> last commanded leg
     routes: dict = field(default_factory=dict)        # route id -> LockedRoute
@@ -71,19 +79,24 @@ class Interlocking:
                 steps.extend(held[1:] if steps and held and held[0] == steps[-1] else held)
         return tuple(steps)
 
+    def routes_of_section(self, section):
+        """The routes holding `section` (more than one only where trains follow each other the same way)."""
+        return [r for r in self.routes.values() if any(name == section for name, _fwd in r.held_steps)]
+
     def route_of_section(self, section):
-        """The route holding `section`, or None."""
-        for route in self.routes.values():
-            if any(name == section for name, _fwd in route.held_steps):
-                return route
-        return None
+        """The first route holding `section`, or None."""
+        held = self.routes_of_section(section)
+        return held[0] if held else None
+
+    def switch_locks(self, switch):
+        """The routes holding a leg of `switch`: a switch is locked while any of its legs is held."""
+        return [r for r in self.routes.values()
+                if any(self.graph.sections[name].switch == switch for name, _fwd in r.held_steps)]
 
     def switch_lock(self, switch):
-        """The route holding a leg of `switch`, or None: a switch is locked while any of its legs is held."""
-        for route in self.routes.values():
-            if any(self.graph.sections[name].switch == switch for name, _fwd in route.held_steps):
-                return route
-        return None
+        """The first route holding a leg of `switch`, or None."""
+        held = self.switch_locks(switch)
+        return held[0] if held else None
 
     def trains_on_switch(self, switch, spans):
         """{train: leg} of the trains whose span reaches a leg of `switch`."""
@@ -116,16 +129,24 @@ class Interlocking:
                 if needs.get(sec.switch, sec.leg) != sec.leg:
                     return Outcome(False, f"route {route_id} runs over both legs of switch {sec.switch}")
                 needs[sec.switch] = sec.leg
-        for i, name in enumerate(names):
-            other = self.route_of_section(name)
-            if other is not None and not (i == 0 and other.train == train and other.held_steps[-1][0] == name):
-                # (a route may begin on the last section of one its train holds: it extends it)
+        for i, (name, forward) in enumerate(steps):
+            for other in self.routes_of_section(name):
+                if i == 0 and other.train == train and other.held_steps[-1][0] == name:
+                    continue     # a route may begin on the last section of one its train holds: it extends it
+                if self.following and other.train != train and other.direction_on(name) == forward:
+                    continue     # it follows the other train the same way: the authority ends at that one's tail
                 return Outcome(False, f"route {route_id} conflicts with route {other.id} (train {other.train}), "
-                                      f"which holds section {name}")
+                                      f"which holds section {name}"
+                                      + (" the other way" if other.direction_on(name) != forward else ""))
+        direction = dict(steps)
         for switch, leg in needs.items():
-            other = self.switch_lock(switch)
-            if other is not None and not (other.train == train and other.switch_legs.get(switch) == leg
-                                          and names[0].startswith(f"{switch}.")):
+            leg_section = f"{switch}.{leg}"
+            for other in self.switch_locks(switch):
+                same = other.direction_on(leg_section) == direction[leg_section]
+                if other.train == train and same and names[0] == leg_section:
+                    continue
+                if self.following and other.train != train and same:
+                    continue
                 return Outcome(False, f"route {route_id} conflicts with route {other.id} (train {other.train}), "
                                       f"which holds switch {switch} {other.switch_legs.get(switch, '')}")
             on = self.trains_on_switch(switch, spans)
@@ -134,9 +155,12 @@ class Interlocking:
                 return Outcome(False, f"switch {switch} cannot move to {leg} for route {route_id}: {who} (spans "
                                       "widened by their uncertainty); a switch never moves under a train")
             for other_train, on_leg in sorted(on.items()):
-                if other_train != train or on_leg != leg:
-                    return Outcome(False, f"switch {switch} is not free for route {route_id}: train {other_train} "
-                                          f"is on its {on_leg} leg, inside the fouling point")
+                if on_leg == leg and (other_train == train or (self.following and any(
+                        r.train == other_train and r.direction_on(leg_section) == direction[leg_section]
+                        for r in self.switch_locks(switch)))):
+                    continue     # itself, or a train ahead running the same way over the same leg
+                return Outcome(False, f"switch {switch} is not free for route {route_id}: train {other_train} "
+                                      f"is on its {on_leg} leg, inside the fouling point")
         moves = tuple((w, leg) for w, leg in needs.items() if self.switch_leg[w] != leg)
         for w, leg in moves:
             self.switch_leg[w] = leg
