@@ -4,6 +4,7 @@ name file, line and fix."""
 import json
 import math
 
+import numpy as np
 import pytest
 
 from cbtc.cli import main as cbtc_main
@@ -232,3 +233,43 @@ def test_what_lies_ahead_on_a_route():
     # past W1, on its leg: the switch is at distance 0; a train behind is not ahead
     on_w1 = look_ahead(route, 1.1, {"C": (("west_line", 0.0, 0.2),)})
     assert on_w1.switches[0] == ("W1", 0.0, "straight") and on_w1.trains == ()
+
+
+def test_a_route_through_the_network_is_a_layout_the_zone_can_run():
+    from cbtc.railway.network_layout import route_layout
+
+    loop = load_track("lego_passing_loop")
+    via_main = route_layout(loop, [("W1.straight", True), ("platform_main", True), ("W2.straight", False),
+                                   ("main", True)])
+    oval = load_layout("lego_oval")
+    # through the straight legs the passing loop is the LEGO oval, piece for piece, from the same origin
+    assert via_main.closed and via_main.length_m == pytest.approx(oval.length_m, abs=1e-9)
+    for s in np.linspace(0.0, oval.length_m, 97):
+        assert math.dist(via_main.xy_m(s), oval.xy_m(s)) < 1e-9
+    assert [st.name for st in via_main.stations] == ["south_main", "north"]
+    assert via_main.station("south_main").s_m == pytest.approx(0.256 + 0.64)
+    assert len(via_main.tags) == 7 and [b.name for b in via_main.blocks] == ["W1.straight", "platform_main",
+                                                                             "W2.straight", "main"]
+    assert via_main.block_at(0.3).name == "platform_main"
+    via_loop = route_layout(loop, [("W1.diverging", True), ("platform_loop", True), ("W2.diverging", False),
+                                   ("main", True)])
+    assert via_loop.length_m > via_main.length_m and [st.name for st in via_loop.stations] == ["south_loop", "north"]
+    line = route_layout(load_track("lego_branch"), [("west_1", False), ("WA.straight", False), ("west_line", True)])
+    assert not line.closed and line.length_m == pytest.approx(0.512 + 0.256 + 1.024)
+    assert line.station("west_1").s_m == pytest.approx(0.512 - 0.40)
+
+
+@pytest.mark.parametrize("policy", ["moving_block", "fixed_block"])
+def test_the_simulator_runs_trains_on_one_route_through_the_network(policy):
+    # every switch set for the route: the virtual trains, their boards and the zone run on the route's layout as on
+    # any loop; both policies (fixed blocks: one per section, signals at the switches)
+    from cbtc.railway.network_layout import route_layout
+    from cbtc.sim.runs import sim_config
+    from cbtc.sim.simulation import Simulation
+
+    layout = route_layout(load_track("lego_passing_loop"), [("W1.diverging", True), ("platform_loop", True),
+                                                           ("W2.diverging", False), ("main", True)])
+    trains = 3 if policy == "moving_block" else 2      # fixed blocks: the 3.8 m main line is one block
+    summary = Simulation(sim_config(layout, trains, seed=2, duration_s=30.0, policy=policy)).run().summary()
+    assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
+    assert all(t["distance_m"] > 0.5 for t in summary["trains"])

@@ -7,6 +7,7 @@ network is read, checked, listed and drawn, and its routes flatten into paths (c
 from dataclasses import dataclass
 
 from cbtc.errors import LayoutError
+from cbtc.railway.layout import Block, Layout, Station, Tag
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,25 @@ class NetworkLayout:
             if st.name == name:
                 return st
         raise LayoutError(f"{self.source}: no station {name!r}; stations are {[st.name for st in self.stations]}")
+
+
+def route_layout(network, steps, name=None) -> Layout:
+    """The single-path Layout a train on the route `steps` runs on: the route flattened into one path (a loop when it
+    comes round), the stations and tags on its sections at their route coordinates, one fixed block per section
+    (signals at the switches' toes and heels), the network's IPS frame. Positions convert back with Route.locate."""
+    route = network.graph.route(steps)
+    path = route.path()
+    stations = [Station(st.name, route.s_of(st.section, st.offset_m), st.window_m) for st in network.stations
+                if route.s_of(st.section, st.offset_m) is not None]
+    tags = [Tag(t.uid, route.s_of(t.section, t.offset_m)) for t in network.tags
+            if route.s_of(t.section, t.offset_m) is not None]
+    if route.closed:
+        stations = [Station(st.name, st.s_m % route.length_m, st.window_m) for st in stations]
+        tags = [Tag(t.uid, t.s_m % route.length_m) for t in tags]
+    blocks = [Block(section, start, start + network.graph.sections[section].length_m)
+              for (section, _fwd), start in zip(route.steps, route.starts_m)]
+    label = name or f"{network.name}:{'+'.join(s for s, _f in route.steps)}"
+    return Layout(label, network.source, path, stations, tags, blocks, network.ips)
 
 
 def refuse_network(layout, what):
