@@ -222,6 +222,18 @@ def draw_png(layout, path):
     return path
 
 
+def _draw_switches(ax, graph):
+    """Each switch: a diamond at its toe with its id, its legs marked S (straight) and D (diverging)."""
+    for w in graph.switches.values():
+        x, y = w.toe_xy_m
+        ax.plot(x, y, "D", color="black", ms=6, zorder=4)
+        ax.annotate(w.id, (x, y), textcoords="offset points", xytext=(-4, -12), fontsize=9, fontweight="bold")
+        for leg, mark in (("straight", "S"), ("diverging", "D")):
+            lx, ly = graph.sections[w.leg_section(leg)].path.xy_m(graph.sections[w.leg_section(leg)].length_m * 0.7)
+            ax.annotate(mark, (lx, ly), fontsize=7, ha="center", va="center", zorder=5,
+                        bbox={"boxstyle": "circle,pad=0.15", "fc": "white", "ec": "0.5", "lw": 0.5})
+
+
 def draw_network_png(layout, path):
     """Draw a network's sections (each named), its switches (id at the toe, legs marked S and D), stations and tags
     to a PNG; returns `path`."""
@@ -247,14 +259,7 @@ def draw_network_png(layout, path):
             ax.annotate(section.name, (mx, my), (mx - 0.06 * np.sin(h), my + 0.06 * np.cos(h)), fontsize=7,
                         color="0.25", ha="center", va="center")
     size = float(np.ptp(np.concatenate(xy_all), axis=0).max()) or 1.0
-    for w in graph.switches.values():
-        x, y = w.toe_xy_m
-        ax.plot(x, y, "D", color="black", ms=6, zorder=4)
-        ax.annotate(w.id, (x, y), textcoords="offset points", xytext=(-4, -12), fontsize=9, fontweight="bold")
-        for leg, mark in (("straight", "S"), ("diverging", "D")):
-            lx, ly = graph.sections[w.leg_section(leg)].path.xy_m(graph.sections[w.leg_section(leg)].length_m * 0.7)
-            ax.annotate(mark, (lx, ly), fontsize=7, ha="center", va="center", zorder=5,
-                        bbox={"boxstyle": "circle,pad=0.15", "fc": "white", "ec": "0.5", "lw": 0.5})
+    _draw_switches(ax, graph)
     for node in graph.nodes:
         if not node.side_b:
             ax.plot(*node.xy_m, "|", color="black", ms=14, mew=3, zorder=4)
