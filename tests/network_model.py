@@ -124,14 +124,14 @@ def truth_spans(trains, sigma_m):
 
 
 def collisions(graph, spans):
-    """(a, b, section, section) of every two trains on one stretch of one section, or on one switch piece."""
+    """(a, b, section, section) of every two trains on one stretch of one section, or on one switch or crossing."""
     found = []
     names = sorted(spans)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
             for sa, lo_a, hi_a in spans[a]:
                 for sb, lo_b, hi_b in spans[b]:
-                    same_switch = graph.sections[sa].switch and graph.sections[sa].switch == graph.sections[sb].switch
-                    if (sa == sb and lo_a < hi_b and lo_b < hi_a) or same_switch:
+                    same_piece = graph.sections[sa].piece and graph.sections[sa].piece == graph.sections[sb].piece
+                    if (sa == sb and lo_a < hi_b and lo_b < hi_a) or same_piece:
                         found.append((a, b, sa, sb))
     return found

@@ -161,3 +161,10 @@ def test_following_on_shared_track_beats_exclusive_sections():
         assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
         laps[following] = sum(stats["arrivals"].values())
     assert laps[True] >= 1.4 * laps[False], laps
+
+
+def test_two_trains_round_the_figure_eight_take_turns_at_the_crossing():
+    stats = run("lego_figure_eight", {"A": (("east_loop", True), 1.0), "B": (("west_loop", True), 1.0)},
+                {"A": ["west_loop", "east_loop"], "B": ["east_loop", "west_loop"]}, 90.0)
+    assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
+    assert min(stats["arrivals"].values()) >= 6, stats["arrivals"]

@@ -132,7 +132,7 @@ CASES = [
     ("join apart", lambda t: t.replace("stations:", "joins:\n  - [platform_main.start, W2.toe]\nstations:"),
      "[platform_main.start, W2.toe]", ["joins[0]", "do not meet", "mm apart"]),
     ("unknown anchor", lambda t: t.replace("from: W1.diverging", "from: W9.diverging"),
-     "from: W9.diverging", ["track[3].from", "no section or switch 'W9'"]),
+     "from: W9.diverging", ["track[3].from", "no section, switch or crossing 'W9'"]),
     ("unknown end", lambda t: t.replace("from: W1.diverging", "from: W1.curved"),
      "from: W1.curved", ["'W1.curved' is not an end of W1", "W1.toe, W1.straight, W1.diverging"]),
     ("bad piece", lambda t: t.replace("piece: switch_right", "piece: switch_wye"),
@@ -273,3 +273,36 @@ def test_the_simulator_runs_trains_on_one_route_through_the_network(policy):
     summary = Simulation(sim_config(layout, trains, seed=2, duration_s=30.0, policy=policy)).run().summary()
     assert summary["collisions"] == 0 and summary["authority_overruns"] == 0
     assert all(t["distance_m"] > 0.5 for t in summary["trains"])
+
+
+def test_a_figure_eight_crosses_on_a_crossing():
+    from cbtc.railway.ahead import look_ahead
+    from cbtc.railway.interlocking import Interlocking
+
+    layout = load_track("lego_figure_eight")
+    g = layout.graph
+    assert g.sections["X.a"].crossing == "X" and g.piece_mates("X.a") == ["X.b"]
+    # the two tracks cross at their middles at right angles; the figure eight is one closed route over both
+    assert math.dist(g.sections["X.a"].path.xy_m(0.064), g.sections["X.b"].path.xy_m(0.064)) < 1e-12
+    route = g.route([("X.a", True), ("east_loop", True), ("X.b", False), ("west_loop", True)])
+    assert route.closed and route.length_m == pytest.approx(layout.length_m)
+    # a train on the crossing's other track fouls the route where it enters the crossing
+    ahead = look_ahead(route, 3.0, {"T": (("X.b", 0.0, 0.05),), "U": (("X.a", 0.0, 0.01),)}, own="U")
+    assert ahead.trains == (("T", pytest.approx(route.length_m - 3.0)),)
+    ixl = Interlocking(g)
+    spans = {"T": (("west_loop", 1.5, 1.75),), "U": (("east_loop", 1.5, 1.75),)}
+    assert ixl.set_route("R1", "T", [("west_loop", True), ("X.a", True), ("east_loop", True)], spans).ok
+    out = ixl.set_route("R2", "U", [("east_loop", True), ("X.b", False), ("west_loop", True)], spans)
+    assert not out.ok and "X.a, the track crossing X.b" in out.reason
+    out = Interlocking(g).set_route("R2", "U", [("east_loop", True), ("X.b", False)],
+                                    {"T": (("X.a", 0.05, 0.128), ("east_loop", 0.0, 0.1))})
+    assert not out.ok and "crossing X is not free" in out.reason and "train T is on X.a" in out.reason
+
+
+def test_crossing_errors_name_the_line_and_fix(tmp_path):
+    text = open(load_track("lego_figure_eight").source, encoding="utf-8").read()
+    message, path = _error(tmp_path, text.replace("from: X.b.start", "from: X.c.start"))
+    assert f"{path}:{_line_of(text, 'from: X.b.start')}:" in message and "'X.c.start' is not an end of X" in message
+    assert "X.a.start, X.a.end, X.b.start, X.b.end" in message
+    message, _ = _error(tmp_path, text.replace("{crossing: X, start:", "{crossing: X, by: c, start:"))
+    assert "track[0].by: must be a or b" in message

@@ -76,8 +76,9 @@ def describe_network(layout) -> dict:
         x, y = layout.xy_m(t.section, t.offset_m)
         tags.append({"uid": t.uid, "section": t.section, "offset_m": t.offset_m, "x_m": round(x, 4) + 0.0,
                      "y_m": round(y, 4) + 0.0})
+    crossings = sorted({s.crossing for s in graph.sections.values() if s.crossing})
     return {"name": layout.name, "source": layout.source, "kind": "network", "length_m": round(layout.length_m, 4),
-            "sections": sections, "switches": switches,
+            "sections": sections, "switches": switches, "crossings": crossings,
             "stations": [{"name": s.name, "section": s.section, "offset_m": s.offset_m, "window_m": s.window_m}
                          for s in layout.stations],
             "tags": tags}
@@ -86,7 +87,8 @@ def describe_network(layout) -> dict:
 def _show_network(info):
     print(f"{info['name']} ({info['source']})")
     print(f"track network, {info['length_m']} m of track, {len(info['sections'])} sections, "
-          f"{len(info['switches'])} switches")
+          f"{len(info['switches'])} switches" + (f", crossings {', '.join(info['crossings'])} (tracks a and b)"
+                                                 if info["crossings"] else ""))
     print("\nsections:")
     print(format_table(info["sections"], [("name", "name"), ("length_m", "length m"), ("start_joins", "start joins"),
                                           ("end_joins", "end joins")]))
@@ -223,7 +225,8 @@ def draw_png(layout, path):
 
 
 def _draw_switches(ax, graph):
-    """Each switch: a diamond at its toe with its id, its legs marked S (straight) and D (diverging)."""
+    """Each switch: a diamond at its toe with its id, its legs marked S (straight) and D (diverging); each crossing:
+    a cross at its middle with its id."""
     for w in graph.switches.values():
         x, y = w.toe_xy_m
         ax.plot(x, y, "D", color="black", ms=6, zorder=4)
@@ -232,6 +235,10 @@ def _draw_switches(ax, graph):
             lx, ly = graph.sections[w.leg_section(leg)].path.xy_m(graph.sections[w.leg_section(leg)].length_m * 0.7)
             ax.annotate(mark, (lx, ly), fontsize=7, ha="center", va="center", zorder=5,
                         bbox={"boxstyle": "circle,pad=0.15", "fc": "white", "ec": "0.5", "lw": 0.5})
+    for name in sorted({s.crossing for s in graph.sections.values() if s.crossing}):
+        x, y = graph.sections[f"{name}.a"].path.xy_m(graph.sections[f"{name}.a"].length_m / 2)
+        ax.plot(x, y, "X", color="black", ms=9, zorder=4)
+        ax.annotate(name, (x, y), textcoords="offset points", xytext=(6, -12), fontsize=9, fontweight="bold")
 
 
 def draw_network_png(layout, path):
@@ -275,6 +282,8 @@ def draw_network_png(layout, path):
     ax.plot([], [], "-", color="tab:brown", lw=3, label="switch, straight leg (S)")
     ax.plot([], [], "-", color="tab:purple", lw=3, label="switch, diverging leg (D)")
     ax.plot([], [], "D", color="black", label="switch toe (id)")
+    if any(s.crossing for s in graph.sections.values()):
+        ax.plot([], [], "X", color="black", label="crossing (id)")
     ax.plot([], [], "|", color="black", mew=3, ms=10, label="buffer stop")
     ax.plot([], [], "s", color="tab:blue", label="station (stop point)")
     ax.plot([], [], "o", color="tab:orange", label="RFID tag")

@@ -3,9 +3,9 @@
 On a single path (a loop or a line) the route is the path itself and the trains are ordered by head position:
 `ahead_index` and `trains_ahead` give the train ahead, as the zone, the simulator's truth and the recorder ask it.
 On a track network `look_ahead` reads a route: every train whose span lies on the route ahead of the head, or fouls
-it at a switch the route runs through (a train on the switch's other leg: the converging branch of a merge), with
-the distance to it; the switches in the route with the distance to where the route enters each; the distance to the
-route's end.
+it at a switch or crossing the route runs through (a train on the switch's other leg: the converging branch of a
+merge; a train on the crossing's other track), with the distance to it; the switches in the route with the distance
+to where the route enters each; the distance to the route's end.
 """
 
 from dataclasses import dataclass
@@ -59,25 +59,29 @@ def look_ahead(route, head_s_m, spans, own=None):
     each already widened by its uncertainty; `own` names the train itself, whose span is left out."""
     graph, length, closed = route.graph, route.length_m, route.closed
     on_route = {name: (start, forward) for (name, forward), start in zip(route.steps, route.starts_m)}
-    switch_entry = {}
+    piece_entry = {}     # switch or crossing -> distance to where the route enters it
     switches = []
     for (name, _fwd), start in zip(route.steps, route.starts_m):
         section = graph.sections[name]
-        if section.switch and section.switch not in switch_entry:
+        if section.piece:
             into = _forward(start, head_s_m, length, closed)     # how far the head is past the route's entry
             if 0.0 <= into < section.length_m:
-                d = 0.0                                          # on the switch
+                d = 0.0                                          # on the piece
             elif closed or into < 0.0:
                 d = _forward(head_s_m, start, length, closed)
             else:
                 continue                                         # passed
-            switch_entry[section.switch] = d
-            switches.append((section.switch, d, section.leg))
+            piece_entry[section.piece] = min(d, piece_entry.get(section.piece, inf))
+            if section.switch:
+                switches.append((section.switch, d, section.leg))
     found = {}
     for train, intervals in spans.items():
         if train == own:
             continue
         for name, lo, hi in intervals:
+            piece = graph.sections[name].piece      # one train anywhere on a switch or crossing fouls all of it
+            if piece in piece_entry:
+                found[train] = min(found.get(train, inf), piece_entry[piece])
             if name in on_route:
                 start, forward = on_route[name]
                 sec_len = graph.sections[name].length_m
@@ -89,10 +93,7 @@ def look_ahead(route, head_s_m, spans, own=None):
                 else:
                     d = max(a - head_s_m, 0.0)
             else:
-                switch = graph.sections[name].switch
-                d = switch_entry.get(switch) if switch else None
-                if d is None:
-                    continue
+                continue
             found[train] = min(found.get(train, inf), d)
     end_m = inf if closed else max(length - head_s_m, 0.0)
     return Ahead(tuple(sorted(found.items(), key=lambda kv: (kv[1], kv[0]))), tuple(switches), end_m)

@@ -161,11 +161,30 @@ class Interlocking:
                     continue     # itself, or a train ahead running the same way over the same leg
                 return Outcome(False, f"switch {switch} is not free for route {route_id}: train {other_train} "
                                       f"is on its {on_leg} leg, inside the fouling point")
+        crossing = self._crossing_conflict(route_id, train, steps, spans)
+        if crossing is not None:
+            return crossing
         moves = tuple((w, leg) for w, leg in needs.items() if self.switch_leg[w] != leg)
         for w, leg in moves:
             self.switch_leg[w] = leg
         self.routes[route_id] = LockedRoute(route_id, train, steps, needs)
         return Outcome(True, "", moves)
+
+    def _crossing_conflict(self, route_id, train, steps, spans):
+        """A refusal when a crossing on the route has its other track held by another train's route or occupied by
+        another train (the two tracks cross: one train on either fouls both), else None."""
+        for name, _fwd in steps:
+            crossing = self.graph.sections[name].crossing
+            for mate in self.graph.piece_mates(name) if crossing else ():
+                for other in self.routes_of_section(mate):
+                    if other.train != train:
+                        return Outcome(False, f"route {route_id} conflicts with route {other.id} (train "
+                                              f"{other.train}), which holds {mate}, the track crossing {name}")
+                for other_train, intervals in sorted(spans.items()):
+                    if other_train != train and any(s == mate for s, _lo, _hi in intervals):
+                        return Outcome(False, f"crossing {crossing} is not free for route {route_id}: train "
+                                              f"{other_train} is on {mate}")
+        return None
 
     def move_switch(self, switch, leg, spans) -> Outcome:
         """Throw `switch` to `leg` by hand, or refuse: locked by a route, or a train on it."""

@@ -25,6 +25,9 @@ R40_M = 40 * STUD_M
 DIVERGE_OUT_DEG = math.degrees(math.atan2(3.0, 4.0))
 DIVERGE_BACK_DEG = DIVERGE_OUT_DEG - 22.5
 SWITCH_PIECES = {"switch_left": 1.0, "switch_right": -1.0}
+CROSSING_KEYS = ("crossing", "start", "at", "by")
+CROSSING_HALF_M = 8 * STUD_M   # LEGO's crossing: two 16-stud straights crossing at their middles at 90 degrees
+KINDS = ("section", "switch", "crossing")
 
 
 def switch_legs(hand_sign):
@@ -74,12 +77,12 @@ def _read_item(r, items, i, names):
     r.line = line_of(items, i)
     if not isinstance(item, dict):
         r.fail(where, f"must be a mapping such as {{section: main, segments: [...]}}, got {ld.kind_of(item)}")
-    kinds = [k for k in ("section", "switch") if k in item]
+    kinds = [k for k in KINDS if k in item]
     if len(kinds) != 1:
-        r.fail(where, "needs exactly one of 'section' (a chain of pieces) or 'switch' (a LEGO switch)"
-               + (f", got {kinds}" if kinds else ""))
+        r.fail(where, "needs exactly one of 'section' (a chain of pieces), 'switch' (a LEGO switch) or 'crossing' "
+               "(a LEGO crossing)" + (f", got {kinds}" if kinds else ""))
     kind = kinds[0]
-    r.mapping(item, where, SECTION_KEYS if kind == "section" else SWITCH_KEYS)
+    r.mapping(item, where, {"section": SECTION_KEYS, "switch": SWITCH_KEYS, "crossing": CROSSING_KEYS}[kind])
     ident = item[kind]
     if not isinstance(ident, str) or not ident or "." in ident:
         r.fail(f"{where}.{kind}", f"must be a name without dots, got {ident!r}")
@@ -93,6 +96,11 @@ def _read_item(r, items, i, names):
         if "segments" not in item:
             r.fail(f"{where}.segments", "missing: list the section's pieces")
         return i, r.line, kind, ident, item, ld.read_segments(r, item["segments"], f"{where}.segments")
+    if kind == "crossing":
+        by = item.get("by", "a")
+        if by not in ("a", "b"):
+            r.fail(f"{where}.by", f"must be a or b (the track whose start is placed at 'at'), got {by!r}")
+        return i, r.line, kind, ident, item, None
     piece = item.get("piece")
     if piece not in SWITCH_PIECES:
         r.fail(f"{where}.piece", f"must be one of {', '.join(SWITCH_PIECES)}, got {piece!r}")
@@ -139,6 +147,9 @@ def _place_item(r, entry, ends, sections, switches):
         ends[f"{ident}.start"] = _End(f"{ident}.start", (x, y, h + math.pi), ((ident, START),), label)
         ends[f"{ident}.end"] = _End(f"{ident}.end", path.end_pose, ((ident, END),), label)
         return
+    if kind == "crossing":
+        _place_crossing(r, item, ident, ends, sections, where, label)
+        return
     x, y, h = _switch_toe(r, item, segs, ends, where)
     switches.append(Switch(ident, "left" if SWITCH_PIECES[item["piece"]] > 0 else "right", (x, y)))
     for leg in LEGS:
@@ -147,6 +158,29 @@ def _place_item(r, entry, ends, sections, switches):
         ends[f"{ident}.{leg}"] = _End(f"{ident}.{leg}", path.end_pose, ((f"{ident}.{leg}", END),), label)
     ends[f"{ident}.toe"] = _End(f"{ident}.toe", (x, y, h + math.pi), tuple((f"{ident}.{leg}", START) for leg in LEGS),
                                 label)
+
+
+def _place_crossing(r, item, ident, ends, sections, where, label):
+    """A crossing's two tracks, `a` and `b` (a's heading + 90 degrees), from a start pose or from the end a's start
+    (by: a) or b's start (by: b) is placed at."""
+    if "at" not in item:
+        x, y, h = _pose(r, item.get("start", {}), f"{where}.start")
+    else:
+        e = ends[item["at"]]
+        x, y, h = e.x_m, e.y_m, e.out_rad
+        if item.get("by", "a") == "b":     # from b's start to the middle, then back along a to a's start
+            mx, my = x + CROSSING_HALF_M * math.cos(h), y + CROSSING_HALF_M * math.sin(h)
+            h -= math.pi / 2
+            x, y = mx - CROSSING_HALF_M * math.cos(h), my - CROSSING_HALF_M * math.sin(h)
+    mx, my = x + CROSSING_HALF_M * math.cos(h), y + CROSSING_HALF_M * math.sin(h)
+    hb = h + math.pi / 2
+    starts = {"a": (x, y, h), "b": (mx - CROSSING_HALF_M * math.cos(hb), my - CROSSING_HALF_M * math.sin(hb), hb)}
+    for track, (sx, sy, sh) in starts.items():
+        name = f"{ident}.{track}"
+        path = Path([("straight", 2 * CROSSING_HALF_M)], sx, sy, sh)
+        sections.append(Section(name, path, crossing=ident))
+        ends[f"{name}.start"] = _End(f"{name}.start", (sx, sy, sh + math.pi), ((name, START),), label)
+        ends[f"{name}.end"] = _End(f"{name}.end", path.end_pose, ((name, END),), label)
 
 
 def _unresolved(r, entry, items, names):
@@ -159,8 +193,8 @@ def _unresolved(r, entry, items, names):
         r.fail(f"track[{i}].{key}", f"must name an end such as main.end or W1.diverging, got {anchor!r}")
     base = anchor.split(".")[0]
     if base not in names:
-        r.fail(f"track[{i}].{key}", f"{anchor!r}: there is no section or switch {base!r} in track; name an end of one "
-                                    "that is, or add it")
+        r.fail(f"track[{i}].{key}", f"{anchor!r}: there is no section, switch or crossing {base!r} in track; name an "
+                                    "end of one that is, or add it")
     known = _end_names(items[names[base]])
     if anchor not in known:
         r.fail(f"track[{i}].{key}", f"{anchor!r} is not an end of {base}: its ends are {', '.join(known)}")
@@ -171,6 +205,8 @@ def _unresolved(r, entry, items, names):
 def _end_names(item):
     if "section" in item:
         return [f"{item['section']}.start", f"{item['section']}.end"]
+    if "crossing" in item:
+        return [f"{item['crossing']}.{t}.{e}" for t in ("a", "b") for e in ("start", "end")]
     return [f"{item['switch']}.{e}" for e in ("toe",) + LEGS]
 
 

@@ -150,8 +150,8 @@ def check_overlaps(r, graph, ends):
         sa, pa = sampled[a]
         for b in names[ia:]:
             sec_a, sec_b = graph.sections[a], graph.sections[b]
-            if a != b and sec_a.switch and sec_a.switch == sec_b.switch:
-                continue
+            if a != b and sec_a.piece and sec_a.piece == sec_b.piece:
+                continue     # the legs of one switch, the tracks of one crossing
             sb, pb = sampled[b]
             d = np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=-1)
             close = d < CLEARANCE_M

@@ -23,6 +23,13 @@ class Section:
     path: Path
     switch: str = ""      # the switch this section is a leg of, "" for plain track
     leg: str = ""         # "straight" or "diverging" for a leg
+    crossing: str = ""    # the crossing this section is a track of ("a" or "b", crossing the other at its middle)
+
+    @property
+    def piece(self):
+        """The switch or crossing this section belongs to, "" for plain track: the sections of one piece foul each
+        other, so one train on any of them occupies them all."""
+        return self.switch or self.crossing
 
     @property
     def length_m(self):
@@ -83,6 +90,11 @@ class TrackGraph:
     @property
     def length_m(self):
         return sum(s.length_m for s in self.sections.values())
+
+    def piece_mates(self, section):
+        """The other sections of the switch or crossing `section` belongs to (none for plain track)."""
+        piece = self.sections[section].piece
+        return [n for n, s in self.sections.items() if piece and s.piece == piece and n != section]
 
     def node_at(self, end):
         """The node the section end (section, "start"|"end") lies on."""
