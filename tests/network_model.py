@@ -8,7 +8,8 @@ from cbtc.railway.layout_dict import layout_from_dict
 
 def network(elements):
     """A line of LEGO pieces from `elements`: ("run", n straights), ("loop", n: a passing loop on the left),
-    ("siding", a stub on the right ending at a buffer stop); buffer stops at both ends of the line."""
+    ("siding", a stub on the right ending at a buffer stop), ("cross", a crossing whose other track runs a straight
+    to a buffer stop each side); buffer stops at both ends of the line."""
     track = [{"section": "s0", "start": {"x_m": 0.0, "y_m": 0.0, "heading_deg": 0},
               "segments": [{"piece": "straight", "count": 2}]}]
     buffers, here = ["s0.start"], "s0.end"
@@ -25,6 +26,13 @@ def network(elements):
                        "segments": [{"piece": "curve_r40", "turn": "right"}, {"piece": "straight", "count": n},
                                     {"piece": "curve_r40", "turn": "right"}]}]
             here = f"B{i}.toe"
+        elif kind == "cross":
+            track += [{"crossing": f"X{i}", "at": here},
+                      {"section": f"n{i}", "from": f"X{i}.b.end", "segments": [{"piece": "straight"}]},
+                      {"section": f"o{i}", "from": f"X{i}.b.start", "segments": [{"piece": "straight"}]},
+                      {"section": f"c{i}", "from": f"X{i}.a.end", "segments": [{"piece": "straight"}]}]
+            buffers += [f"n{i}.end", f"o{i}.end"]
+            here = f"c{i}.end"
         else:
             track += [{"switch": f"S{i}", "piece": "switch_right", "at": here},
                       {"section": f"d{i}", "from": f"S{i}.diverging",
@@ -39,7 +47,8 @@ def network(elements):
 
 ELEMENTS = st.lists(st.one_of(st.tuples(st.just("run"), st.integers(1, 3)),
                               st.tuples(st.just("loop"), st.integers(1, 4)),
-                              st.tuples(st.just("siding"), st.just(0))), min_size=1, max_size=5)
+                              st.tuples(st.just("siding"), st.just(0)), st.tuples(st.just("cross"), st.just(0))),
+                    min_size=1, max_size=5)
 
 
 class Train:

@@ -157,6 +157,10 @@ class InterlockingMachine(RuleBasedStateMachine):
         out = self.ixl.set_route(f"R{self.count}", train, steps, spans, self.now_s)
         assert out.ok or out.reason
         self._check_moves(out.moves, *before)
+        for name, _f in steps if out.ok else ():
+            for mate in self.graph.piece_mates(name) if self.graph.sections[name].crossing else ():
+                on = [t for t, iv in spans.items() if t != train and any(s == mate for s, _lo, _hi in iv)]
+                assert not on, f"route over {name} set with train {on} on {mate}, the track crossing it"
 
     @rule(data=st.data())
     def throw_switch(self, data):
@@ -201,6 +205,19 @@ class InterlockingMachine(RuleBasedStateMachine):
     def _follows(self, a, b, name, forward):
         ra = self.ixl.routes[a]
         return self.ixl.following and ra.train != self.ixl.routes[b].train and ra.direction_on(name) == forward
+
+    @invariant()
+    def no_two_trains_hold_the_tracks_of_one_crossing(self):
+        if not hasattr(self, "ixl"):
+            return
+        held = {}
+        for route in self.ixl.routes.values():
+            for name, _f in route.held_steps:
+                crossing = self.graph.sections[name].crossing
+                if crossing:
+                    for track, train in held.get(crossing, ()):
+                        assert track == name or train == route.train, f"crossing {crossing} held by two trains"
+                    held.setdefault(crossing, []).append((name, route.train))
 
     @invariant()
     def no_two_locked_routes_conflict(self):
