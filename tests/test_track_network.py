@@ -193,10 +193,16 @@ def test_layout_show_and_list_networks(tmp_path, capsys):
     assert any(line.split()[:2] == ["lego_branch", "network"] for line in out.splitlines())
 
 
-def test_commands_that_run_paths_refuse_a_network_cleanly(capsys):
-    assert cbtc_main(["sim", "--layout", "lego_passing_loop", "--trains", "2", "--duration", "1"]) == 2
+@pytest.mark.parametrize("argv", [["sim", "--layout", "lego_passing_loop", "--trains", "2", "--duration", "1"],
+                                  ["compare", "--layout", "lego_branch"], ["fusion", "--layout", "lego_figure_eight"],
+                                  ["campaign", "--runs", "2", "--layouts", "lego_branch"],
+                                  ["setup", "--layout", "lego_branch", "--out", "OUT"]])
+def test_commands_that_run_paths_refuse_a_network_cleanly(argv, tmp_path, capsys):
+    out = tmp_path / "live"
+    assert cbtc_main([str(out) if a == "OUT" else a for a in argv]) == 2
     err = capsys.readouterr().err
     assert "is a track network" in err and "cbtc layout list" in err and "Traceback" not in err
+    assert not out.exists()      # nothing written before the refusal
 
 
 def test_ips_fixes_project_onto_the_sections_the_train_can_be_on():

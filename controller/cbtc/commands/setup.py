@@ -59,6 +59,9 @@ def run(args):
         ids = [spec.train_id for spec in args.scenario.trains]
         fleet = {"scenario": _named(args.scenario.source)}
     else:
+        from cbtc.layout_files import load_layout
+
+        load_layout(args.layout, "a live run")   # checked before anything is written: the zone would refuse it
         ids = args.train_ids or ["A", "B"]
         fleet = {"layout": _named(args.layout), "train_ids": ids}
     paths = write_config(args.out, ids, port=args.port, host=args.host, run_as=args.run_as)
