@@ -239,7 +239,8 @@ PROPERTIES = {
     "mfrc522_card": (a_card_reads_as_its_uid_or_nothing, cards),
     "board_command": (command_payload_is_refused_or_conforms, command_payloads),
     "layout": (p.layout_mutation_loads_or_names_the_problem,
-               st.sampled_from(["itb_square", "lego_oval", "straight_test"]),
+               st.sampled_from(["itb_square", "lego_oval", "straight_test", "lego_passing_loop", "lego_branch",
+                                "lego_figure_eight"]),
                st.lists(st.integers(0, 50), min_size=1, max_size=4), p.json_values),
 }
 

@@ -92,20 +92,23 @@ def _read_item(r, items, i, names):
     anchors = [k for k in ("start", "from" if kind == "section" else "at") if k in item]
     if len(anchors) > 1:
         r.fail(where, f"give '{anchors[0]}' or '{anchors[1]}', not both")
+    anchor_key = "from" if kind == "section" else "at"
+    if anchor_key in item and not isinstance(item[anchor_key], str):
+        r.fail(f"{where}.{anchor_key}", f"must name an end such as main.end or W1.diverging, got {item[anchor_key]!r}")
     if kind == "section":
         if "segments" not in item:
             r.fail(f"{where}.segments", "missing: list the section's pieces")
         return i, r.line, kind, ident, item, ld.read_segments(r, item["segments"], f"{where}.segments")
     if kind == "crossing":
         by = item.get("by", "a")
-        if by not in ("a", "b"):
+        if not isinstance(by, str) or by not in ("a", "b"):
             r.fail(f"{where}.by", f"must be a or b (the track whose start is placed at 'at'), got {by!r}")
         return i, r.line, kind, ident, item, None
     piece = item.get("piece")
-    if piece not in SWITCH_PIECES:
+    if not isinstance(piece, str) or piece not in SWITCH_PIECES:
         r.fail(f"{where}.piece", f"must be one of {', '.join(SWITCH_PIECES)}, got {piece!r}")
     by = item.get("by", "toe")
-    if by not in ("toe",) + LEGS:
+    if not isinstance(by, str) or by not in ("toe",) + LEGS:
         r.fail(f"{where}.by", f"must be toe, straight or diverging (the switch end placed at 'at'), got {by!r}")
     if by != "toe" and "at" not in item:
         r.fail(f"{where}.by", "needs 'at': the end the switch's heel is placed on")
@@ -225,7 +228,7 @@ def _switch_toe(r, item, segs, ends, where):
 
 def _on_graph(r, graph, item, where, key):
     section = item.get("section")
-    if section not in graph.sections:
+    if not isinstance(section, str) or section not in graph.sections:
         r.fail(f"{where}.section", f"{section!r} is off the graph: no such section; sections are "
                f"{', '.join(graph.sections)}")
     length = graph.sections[section].length_m

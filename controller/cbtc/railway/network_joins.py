@@ -35,7 +35,7 @@ def join(r, data, sections, switches, ends):
     buffers = {}
     for i, name in enumerate(spec):
         r.line = line_of(spec, i)
-        if name not in ends:
+        if not isinstance(name, str) or name not in ends:
             r.fail(f"buffers[{i}]", f"{name!r} is not an end in track; ends are named like main.end or W1.straight")
         buffers[name] = i
     clusters = []
@@ -105,7 +105,7 @@ def _check_joins(r, data, ends, side_of):
         if not isinstance(pair, list) or len(pair) != 2:
             r.fail(f"joins[{i}]", f"must be a pair of ends such as [loop.end, W2.diverging], got {pair!r}")
         for name in pair:
-            if name not in ends:
+            if not isinstance(name, str) or name not in ends:
                 r.fail(f"joins[{i}]", f"{name!r} is not an end in track; ends are named like main.end or W1.toe")
         a, b = (ends[n] for n in pair)
         na, nb = side_of[a.name], side_of[b.name]
@@ -147,31 +147,49 @@ def check_overlaps(r, graph, ends):
     sampled = {n: _samples(graph.sections[n]) for n in names}
     node_xy = {n: [np.asarray(graph.node_at((n, w)).xy_m) for w in (START, END)] for n in names}
     for ia, a in enumerate(names):
-        sa, pa = sampled[a]
         for b in names[ia:]:
             sec_a, sec_b = graph.sections[a], graph.sections[b]
             if a != b and sec_a.piece and sec_a.piece == sec_b.piece:
                 continue     # the legs of one switch, the tracks of one crossing
-            sb, pb = sampled[b]
-            d = np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=-1)
-            close = d < CLEARANCE_M
-            if a == b:
-                close &= np.abs(sa[:, None] - sb[None, :]) > 2.0 * NODE_ZONE_M
-            for na in node_xy[a]:
-                for nb in node_xy[b]:
-                    if np.hypot(*(na - nb)) <= ld.CLOSE_TOLERANCE_M:
-                        near_a = np.linalg.norm(pa - na, axis=-1) <= NODE_ZONE_M
-                        near_b = np.linalg.norm(pb - na, axis=-1) <= NODE_ZONE_M
-                        close &= ~(near_a[:, None] & near_b[None, :])
-            if close.any():
-                i, j = np.unravel_index(np.argmin(np.where(close, d, np.inf)), d.shape)
-                item_a, item_b = label[a], label[b]
-                later = max(item_a, item_b)
-                r.line = later[1]
-                x, y = pa[i]
-                what = f"{item_a[2]} runs over itself" if a == b else \
-                    f"{item_a[2]} (track[{item_a[0]}]) and {item_b[2]} (track[{item_b[0]}]) overlap"
-                r.fail(f"track[{later[0]}]", f"{what}: at ({x:.3f}, {y:.3f}) m the centre lines are "
-                       f"{d[i, j] * 1000:.0f} mm apart ({a} at {sa[i]:.3f} m, {b} at {sb[j]:.3f} m), closer than "
-                       f"the track's width ({CLEARANCE_M * 1000:.0f} mm, 8 studs): move the pieces apart, or join "
-                       "them at a switch")
+            shared = [na for na in node_xy[a] for nb in node_xy[b] if np.hypot(*(na - nb)) <= ld.CLOSE_TOLERANCE_M]
+            found = _closest_overlap(sampled[a], sampled[b], a == b, shared)
+            if found is None:
+                continue
+            d, i, j = found
+            (sa, pa), (sb, _pb) = sampled[a], sampled[b]
+            item_a, item_b = label[a], label[b]
+            later = max(item_a, item_b)
+            r.line = later[1]
+            x, y = pa[i]
+            what = f"{item_a[2]} runs over itself" if a == b else \
+                f"{item_a[2]} (track[{item_a[0]}]) and {item_b[2]} (track[{item_b[0]}]) overlap"
+            r.fail(f"track[{later[0]}]", f"{what}: at ({x:.3f}, {y:.3f}) m the centre lines are {d * 1000:.0f} mm "
+                   f"apart ({a} at {sa[i]:.3f} m, {b} at {sb[j]:.3f} m), closer than the track's width "
+                   f"({CLEARANCE_M * 1000:.0f} mm, 8 studs): move the pieces apart, or join them at a switch")
+
+
+def _closest_overlap(sampled_a, sampled_b, same, shared_nodes, rows=512):
+    """(distance, i, j) of the closest pair of samples closer than CLEARANCE_M that neither lies within NODE_ZONE_M
+    of a node both share (nor, on one section, within 2 NODE_ZONE_M of each other along it), or None. Far apart
+    boxes are skipped and the rows taken a block at a time, so a long layout costs little memory."""
+    (sa, pa), (sb, pb) = sampled_a, sampled_b
+    if np.any(pa.min(axis=0) - CLEARANCE_M > pb.max(axis=0)) or np.any(pb.min(axis=0) - CLEARANCE_M > pa.max(axis=0)):
+        return None
+    near_b = [np.linalg.norm(pb - n, axis=-1) <= NODE_ZONE_M for n in shared_nodes]
+    best = None
+    for lo in range(0, len(pa), rows):
+        block = pa[lo:lo + rows]
+        d = np.linalg.norm(block[:, None, :] - pb[None, :, :], axis=-1)
+        close = d < CLEARANCE_M
+        if not close.any():
+            continue
+        if same:
+            close &= np.abs(sa[lo:lo + rows, None] - sb[None, :]) > 2.0 * NODE_ZONE_M
+        for n, nb in zip(shared_nodes, near_b):
+            near_a = np.linalg.norm(block - n, axis=-1) <= NODE_ZONE_M
+            close &= ~(near_a[:, None] & nb[None, :])
+        if close.any():
+            i, j = np.unravel_index(np.argmin(np.where(close, d, np.inf)), d.shape)
+            if best is None or d[i, j] < best[0]:
+                best = (float(d[i, j]), lo + int(i), int(j))
+    return best
