@@ -4,6 +4,7 @@ track graph (its true position; its span, widened by an uncertainty)."""
 from hypothesis import strategies as st
 
 from cbtc.railway.layout_dict import layout_from_dict
+from cbtc.sim.network_position import NetworkPosition
 
 
 def network(elements):
@@ -90,35 +91,16 @@ class Train:
         return tuple(out)
 
 
-class RunningTrain(Train):
-    """A model train that may come round again: its history keeps only the steps its tail still needs."""
+class RunningTrain(NetworkPosition):
+    """A model train that may come round again (the simulator's true position on a network), with the uncertainty
+    its span is widened by."""
 
-    def advance(self, d_m, switch_legs):
-        self.head_m += d_m
-        while True:
-            route = self.graph.route(self.steps)
-            if self.head_m <= route.length_m:
-                break
-            nxt = self.graph.next_steps(*self.steps[-1], switch_legs)
-            if not nxt:
-                self.head_m = route.length_m
-                break
-            self.steps.append(nxt[0])
-        while len(self.steps) > 1:
-            first = self.graph.sections[self.steps[0][0]].length_m
-            if self.head_m - self.length_m - 0.5 < first:
-                break
-            self.steps.pop(0)
-            self.head_m -= first
+    def __init__(self, graph, step, head_m, length_m, sigma_m):
+        super().__init__(graph, step, head_m, length_m)
+        self.sigma_m = sigma_m
 
-    def reverse(self):
-        """Run the other way: the tail becomes the head, every step is run backwards."""
-        route = self.graph.route(self.steps)
-        self.steps = [(name, not fwd) for name, fwd in reversed(self.steps)]
-        self.head_m = route.length_m - (self.head_m - self.length_m)
-
-    def head_into_m(self):
-        return self.head_m - self.graph.route(self.steps).starts_m[-1]
+    def span(self, widen_m=None):
+        return super().span(self.sigma_m if widen_m is None else widen_m)
 
 
 def truth_spans(trains, sigma_m):
