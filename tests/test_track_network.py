@@ -312,3 +312,37 @@ def test_crossing_errors_name_the_line_and_fix(tmp_path):
     assert "X.a.start, X.a.end, X.b.start, X.b.end" in message
     message, _ = _error(tmp_path, text.replace("{crossing: X, start:", "{crossing: X, by: c, start:"))
     assert "track[0].by: must be a or b" in message
+
+
+def _graph_is_consistent(graph):
+    """Every section end on exactly one node side; a way on is a way back; routes flatten onto the sections."""
+    seen = {}
+    for node in graph.nodes:
+        for end in node.side_a + node.side_b:
+            assert end not in seen, end
+            seen[end] = node
+    assert set(seen) == {(n, w) for n in graph.sections for w in ("start", "end")}
+    for name in graph.sections:
+        for forward in (True, False):
+            for nxt, fwd in graph.next_steps(name, forward):
+                assert (name, not forward) in graph.next_steps(nxt, not fwd), (name, forward, nxt, fwd)
+                route = graph.route([(name, forward), (nxt, fwd)])
+                path = route.path()
+                for s in (0.0, route.starts_m[1] - 1e-6, route.starts_m[1] + 1e-6, route.length_m):
+                    assert math.dist(path.xy_m(s), route.xy_m(s)) < 0.006   # joints meet within 5 mm
+
+
+def test_random_lines_of_pieces_load_as_consistent_graphs():
+    from hypothesis import HealthCheck, given, settings
+
+    from network_model import ELEMENTS, network
+
+    @settings(max_examples=60, deadline=None, derandomize=True, database=None,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(ELEMENTS)
+    def check(elements):
+        _graph_is_consistent(network(elements))
+
+    check()
+    for name in ("lego_passing_loop", "lego_branch", "lego_figure_eight"):
+        _graph_is_consistent(load_track(name).graph)

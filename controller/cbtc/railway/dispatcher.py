@@ -2,15 +2,17 @@
 
 A plan is a train's stops in order, each a tuple of stations it may use (the two platforms of a passing loop, the
 tracks of a terminus), repeated round. Trains rest only at stations; a route runs from the station a train stands at
-to one of its next stop's stations, forwards or, reversing at the station, backwards. Before a train is given a route
-the dispatcher asks whether the railway stays live: in the abstract state where that train already stands at its
-destination (a train on its way counts as there), is there an order of moves, each to a free station over track no
-standing train blocks, in which every train reaches its next stop `rounds` times? If not, the move could lead to
-gridlock (a single line with both ends and the loop between full of trains facing each other) and it is not offered.
+to one of its next stop's stations, forwards or, reversing at the station, backwards. The dispatcher reasons on the
+abstract railway: which train stands at which station, where each is in its plan (a train on its way counts as at
+its destination), and the moves between such states (a train to a free station of its next stop, over track no
+standing train blocks). The states are finite, so it finds exactly those from which the railway can run for ever
+with every train reaching its stops again and again (they reach a strongly connected set of states in which every
+train moves), and offers a train only the moves that keep the railway in one of them: a move that could only end in
+gridlock (a single line with both ends and the loop between full of trains facing each other) is never offered, and
+from a good state some move always is.
 """
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 from cbtc.railway.interlocking import find_routes
 
@@ -24,7 +26,7 @@ class Move:
 
 
 class Dispatcher:
-    def __init__(self, graph, stations, plans, rounds=2, max_steps=12):
+    def __init__(self, graph, stations, plans, max_steps=12):
         """`stations`: name -> (section, offset_m); `plans`: train -> [tuple of station names, ...]."""
         self.graph = graph
         self.stations = dict(stations)
@@ -34,9 +36,11 @@ class Dispatcher:
                 for name in stop:
                     if name not in self.stations:
                         raise ValueError(f"train {t}'s plan names station {name!r}, which the layout does not have")
-        self.rounds = rounds
         self.max_steps = max_steps
         self._between = {}
+        self._trains = ()
+        self._analysis = ({}, set())    # the reachable abstract states, and the good ones among them
+        self._distance_key, self._distance = None, {}
 
     def _routes(self, a, b):
         """[(forward at a, steps)] of routes from station a's section to station b's, in both directions."""
@@ -56,43 +60,77 @@ class Dispatcher:
         ends = {self.stations[a][0], self.stations[b][0]}
         return any(not ({s for s, _f in steps} - ends) & blocked for _fwd, steps in self._routes(a, b))
 
+    def _successors(self, state):
+        """[(train index, next state)] of the abstract moves from `state` = (stations, plan positions mod length):
+        a train to a free station of its next stop over track no standing train blocks (staying, if it is there)."""
+        where, idx = state
+        standing = set(where)
+        out = []
+        for i, t in enumerate(self._trains):
+            plan = self.plans[t]
+            for station in plan[idx[i]]:
+                if station != where[i] and (station in standing or
+                                            not self._open(where[i], station, standing - {where[i]})):
+                    continue
+                out.append((i, (where[:i] + (station,) + where[i + 1:],
+                                idx[:i] + ((idx[i] + 1) % len(plan),) + idx[i + 1:])))
+        return out
+
+    def _good_states(self, start):
+        """The states reachable from `start` from which the railway can run for ever with every train reaching its
+        stops again and again: those that can reach a strongly connected set of states in which every train moves."""
+        graph, order, seen = {}, [start], {start}
+        for state in order:                      # every state reachable from the start
+            graph[state] = self._successors(state)
+            for _i, nxt in graph[state]:
+                if nxt not in seen:
+                    seen.add(nxt)
+                    order.append(nxt)
+        fair = set()
+        for component in _components(graph):
+            movers = {i for st in component for i, nxt in graph[st] if nxt in component}
+            if len(movers) == len(self._trains):
+                fair |= component
+        good, back = set(fair), {}
+        for state, nexts in graph.items():
+            for _i, nxt in nexts:
+                back.setdefault(nxt, []).append(state)
+        frontier = list(fair)
+        while frontier:
+            for prev in back.get(frontier.pop(), ()):
+                if prev not in good:
+                    good.add(prev)
+                    frontier.append(prev)
+        return graph, good
+
+    def _state(self, at, index):
+        self._trains = tuple(sorted(at))
+        return (tuple(at[t] for t in self._trains),
+                tuple(index[t] % len(self.plans[t]) for t in self._trains))
+
     def live(self, at, index):
         """True when from trains at stations `at` (train -> station) with plan positions `index` (train -> index of
-        the next stop) every train can reach its next stop `rounds` times in some order of moves."""
-        trains = tuple(sorted(at))
-        need = self.rounds
+        the next stop) the railway can run on for ever, every train reaching its stops again and again."""
+        state = self._state(at, index)
+        if state not in self._analysis[1]:
+            self._analysis = self._good_states(state)
+        return state in self._analysis[1]
 
-        @lru_cache(maxsize=None)
-        def search(where, idx, done):
-            if all(d >= need for d in done):
-                return True
-            standing = set(where)
-            for i, t in enumerate(trains):
-                if done[i] >= need:
-                    continue
-                plan = self.plans[t]
-                stop = plan[idx[i] % len(plan)]
-                for station in stop:
-                    if station in standing and station != where[i]:
-                        continue
-                    if station != where[i] and not self._open(where[i], station, standing - {where[i]}):
-                        continue
-                    nw = where[:i] + (station,) + where[i + 1:]
-                    ni = idx[:i] + (idx[i] + 1,) + idx[i + 1:]
-                    nd = done[:i] + (done[i] + 1,) + done[i + 1:]
-                    if search(nw, ni, nd):
-                        return True
-            return False
-
-        return search(tuple(at[t] for t in trains), tuple(index[t] for t in trains), (0,) * len(trains))
-
-    def moves(self, train, at, index, forward):
+    def moves(self, train, at, index, forward, first=None):
         """The routes `train`, standing at station `at[train]` facing `forward`, may ask for now to its next stop,
-        in order of preference (no reversal first, then the shortest), each keeping the railway live."""
+        in order of preference (no reversal first, then the shortest), each keeping the railway live. `first` names
+        the train that has waited longest: another train is offered only moves that bring the railway closer to a
+        state where `first` has a move, or keep the move it has, so no train waits for ever."""
         plan = self.plans[train]
         stop = plan[index[train] % len(plan)]
         here = at[train]
         others = {s for t, s in at.items() if t != train}
+        now = self._state(at, index)
+        self.live(at, index)
+        waiting = None
+        if first is not None and first != train and first in at:
+            distance = self._distances(self._trains.index(first))
+            waiting = distance.get(now)
         out = []
         for station in stop:
             if station in others:
@@ -101,7 +139,77 @@ class Dispatcher:
             after_index = dict(index, **{train: index[train] + 1})
             if not self.live(after_at, after_index):
                 continue
+            if waiting is not None:   # only a move that brings `first`'s turn nearer, or keeps the one it has
+                then = self._distances(self._trains.index(first)).get(self._state(after_at, after_index))
+                if then is None or (then >= waiting and then > 0):
+                    continue
             for fwd, steps in self._routes(here, station):
                 out.append(Move(station, steps, fwd != forward))
         out.sort(key=lambda m: (m.reverse, len(m.steps)))
         return out
+
+    def _distances(self, i):
+        """Over the good states: how many moves of the others stand between each and one where train `i` has a good
+        move (0: it has one now)."""
+        graph, good = self._analysis
+        key = (id(graph), i)
+        if self._distance_key != key:
+            back = {}
+            for state in good:
+                for _j, nxt in graph[state]:
+                    if nxt in good:
+                        back.setdefault(nxt, []).append(state)
+            distance = {st: 0 for st in good if any(j == i and nxt in good for j, nxt in graph[st])}
+            frontier = list(distance)
+            while frontier:
+                nxt_frontier = []
+                for state in frontier:
+                    for prev in back.get(state, ()):
+                        if prev not in distance:
+                            distance[prev] = distance[state] + 1
+                            nxt_frontier.append(prev)
+                frontier = nxt_frontier
+            self._distance_key, self._distance = key, distance
+        return self._distance
+
+
+def _components(graph):
+    """The strongly connected components of `graph` (state -> [(label, next state)]), as sets (Tarjan, iterative)."""
+    index, low, on_stack, stack, found, counter = {}, {}, set(), [], [], [0]
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(graph[root]))]
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, it = work[-1]
+            advanced = False
+            for _label, nxt in it:
+                if nxt not in index:
+                    index[nxt] = low[nxt] = counter[0]
+                    counter[0] += 1
+                    stack.append(nxt)
+                    on_stack.add(nxt)
+                    work.append((nxt, iter(graph[nxt])))
+                    advanced = True
+                    break
+                if nxt in on_stack:
+                    low[node] = min(low[node], index[nxt])
+            if advanced:
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = set()
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.add(member)
+                    if member == node:
+                        break
+                found.append(component)
+    return found
