@@ -129,6 +129,8 @@ CASES = [
      '"04560003"', ["tags[2].offset_m", "off the graph"]),
     ("buffer joined", lambda t: t.replace("stations:", "buffers: [main.end]\nstations:"),
      "buffers:", ["buffers[0]", "main.end is listed as a buffer stop but is joined to W1.toe", "remove it"]),
+    ("buffer twice", lambda t: t.replace("stations:", "buffers: [main.end, main.end]\nstations:"),
+     "buffers:", ["buffers[1]", "main.end is listed twice (first at buffers[0])"]),
     ("join apart", lambda t: t.replace("stations:", "joins:\n  - [platform_main.start, W2.toe]\nstations:"),
      "[platform_main.start, W2.toe]", ["joins[0]", "do not meet", "mm apart"]),
     ("unknown anchor", lambda t: t.replace("from: W1.diverging", "from: W9.diverging"),

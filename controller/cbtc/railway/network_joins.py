@@ -37,6 +37,8 @@ def join(r, data, sections, switches, ends):
         r.line = line_of(spec, i)
         if not isinstance(name, str) or name not in ends:
             r.fail(f"buffers[{i}]", f"{name!r} is not an end in track; ends are named like main.end or W1.straight")
+        if name in buffers:
+            r.fail(f"buffers[{i}]", f"{name} is listed twice (first at buffers[{buffers[name]}]): keep one")
         buffers[name] = i
     clusters = []
     for e in ends.values():
