@@ -17,8 +17,9 @@ SHIPPED = {"itb_square", "lego_oval", "lego_chicane", "straight_test"}
 
 def test_every_shipped_layout_loads_and_loops_close():
     assert SHIPPED <= set(layout_names())
-    assert SHIPPED | {"lego_passing_loop", "lego_branch"} <= set(layout_names())
-    assert set(path_layout_names()) == set(layout_names()) - {"lego_passing_loop", "lego_branch", "lego_figure_eight"}
+    assert SHIPPED | {"lego_passing_loop", "lego_branch", "lego_merge"} <= set(layout_names())
+    assert set(path_layout_names()) == set(layout_names()) - {"lego_passing_loop", "lego_branch", "lego_figure_eight",
+                                                              "lego_merge"}
     for name in path_layout_names():
         layout = load_layout(name)
         assert layout.name == name and layout.length_m > 0

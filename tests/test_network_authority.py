@@ -31,7 +31,7 @@ def test_the_limit_names_what_bounds_it():
     assert limit.distance_m == pytest.approx(route.length_m - 0.3) and "end of the route" in limit.reason
 
 
-def run(layout_name, placements, plans, seconds, faults=None, following=True):
+def run(layout_name, placements, plans, seconds, faults=None, following=True, v_max=None):
     """Model trains under the interlocking and the network limit for `seconds`, switches thrown by simulated
     machines (`faults`: switch -> (fault, at_s)); returns the counts and each train's last state."""
     graph = load_track(layout_name).graph
@@ -83,7 +83,8 @@ def run(layout_name, placements, plans, seconds, faults=None, following=True):
             limit = network_limit(graph.route(held[k:]), tr.head_into_m() + SIGMA_M, t, spans, detected)
             stats["reasons"].add(limit.reason.split(":")[0].split(" of train")[0])
             allowed = math.sqrt(2.0 * BRAKE_MPS2 * max(limit.distance_m - MARGIN_M, 0.0))
-            v[t] = max(min(v[t] + ACCEL_MPS2 * DT_S, V_MAX_MPS, allowed), v[t] - BRAKE_MPS2 * DT_S, 0.0)
+            top = (v_max or {}).get(t, V_MAX_MPS)
+            v[t] = max(min(v[t] + ACCEL_MPS2 * DT_S, top, allowed), v[t] - BRAKE_MPS2 * DT_S, 0.0)
             before = tr.steps[-1]
             tr.advance(v[t] * DT_S, physical)
             head = graph.sections[tr.steps[-1][0]]
@@ -168,3 +169,21 @@ def test_two_trains_round_the_figure_eight_take_turns_at_the_crossing():
                 {"A": ["west_loop", "east_loop"], "B": ["east_loop", "west_loop"]}, 90.0)
     assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
     assert min(stats["arrivals"].values()) >= 6, stats["arrivals"]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_sumo_merge_case_two_trains_converging_on_one_switch(seed):
+    # lego_merge: trains on both branches run east for the line beyond switch M, starting where and as fast as the
+    # seed says; one passes M first, the other waits at M's heel and then follows it down the line to the buffer
+    import random
+
+    rng = random.Random(seed)
+    placements = {"A": (("branch_a", False), rng.uniform(0.5, 0.95)),
+                  "B": (("branch_b", False), rng.uniform(0.5, 0.95))}
+    speeds = {"A": rng.uniform(0.15, 0.3), "B": rng.uniform(0.15, 0.3)}
+    stats = run("lego_merge", placements, {"A": ["line"], "B": ["line"]}, 40.0, v_max=speeds)
+    assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
+    trains = stats["trains"]
+    assert all(tr.steps[-1][0] == "line" for tr in trains.values())            # both through M
+    first, second = sorted(trains.values(), key=lambda tr: -tr.head_into_m())
+    assert first.head_into_m() > 1.3 and second.head_into_m() < first.head_into_m() - 0.25   # one behind the other
