@@ -20,13 +20,6 @@ BRANCH_PLANS = {"A": [MIDDLE, EAST, MIDDLE, WEST], "B": [MIDDLE, EAST, MIDDLE, W
                 "C": [MIDDLE, WEST, MIDDLE, EAST], "D": [MIDDLE, WEST, MIDDLE, EAST]}
 
 
-def _stop_m(graph, station, forward):
-    """Where a head stops at `station` running `forward` on its section: the offset running forwards, the same
-    distance from the far end running backwards."""
-    section, offset = station
-    return offset if forward else graph.sections[section].length_m - offset
-
-
 def run_plans(layout_name, starts, plans, seconds, v_max=None, dwell=None):
     """Model trains (placed at `starts`, facing along their station's section) run `plans` for `seconds`, each at its
     own top speed and dwell (`v_max`, `dwell`: train -> value); returns the counts: collisions, overruns, switch
@@ -36,6 +29,7 @@ def run_plans(layout_name, starts, plans, seconds, v_max=None, dwell=None):
     layout = load_track(layout_name)
     graph = layout.graph
     stations = {st.name: (st.section, st.offset_m) for st in layout.stations}
+    platforms = {st.name: st for st in layout.stations}
     dispatcher = Dispatcher(graph, stations, plans)
     ixl = Interlocking(graph)
     machines = {w: SwitchMachine(w) for w in graph.switches}
@@ -88,9 +82,7 @@ def run_plans(layout_name, starts, plans, seconds, v_max=None, dwell=None):
             if goal[t] is not None:
                 section, _off = stations[goal[t]]
                 forward = next(f for s, f in route.steps if s == section)
-                stop = route.s_of(section, stations[goal[t]][1]) if forward else \
-                    route.starts_m[[s for s, _f in route.steps].index(section)] + _stop_m(graph, stations[goal[t]],
-                                                                                         False)
+                stop = route.s_of(section, platforms[goal[t]].stop_m(forward))
                 room = min(room, stop - head)
                 if room < 0.005 and v[t] < 0.02 and tr.steps[-1][0] == section:
                     v[t], goal[t] = 0.0, None

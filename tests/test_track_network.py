@@ -264,7 +264,9 @@ def test_a_route_through_the_network_is_a_layout_the_zone_can_run():
     assert via_loop.length_m > via_main.length_m and [st.name for st in via_loop.stations] == ["south_loop", "north"]
     line = route_layout(load_track("lego_branch"), [("west_1", False), ("WA.straight", False), ("west_line", True)])
     assert not line.closed and line.length_m == pytest.approx(0.512 + 0.256 + 1.024)
-    assert line.station("west_1").s_m == pytest.approx(0.512 - 0.40)
+    # run backwards, west_1's stop point is as far from the section's end as its forward one is from its start
+    assert line.station("west_1").s_m == pytest.approx(0.40)
+    assert load_track("lego_branch").station("west_1").stop_m(False) == pytest.approx(0.512 - 0.40)
 
 
 @pytest.mark.parametrize("policy", ["moving_block", "fixed_block"])

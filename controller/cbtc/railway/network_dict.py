@@ -243,7 +243,7 @@ def _stations(r, items, graph):
     for i, item in enumerate(r.sequence(items, "stations")):
         where = f"stations[{i}]"
         r.line = line_of(items, i)
-        item = r.mapping(item, where, ("name", "section", "offset_m", "window_m"))
+        item = r.mapping(item, where, ("name", "section", "offset_m", "back_offset_m", "window_m"))
         name = item.get("name")
         if not isinstance(name, str) or not name:
             r.fail(f"{where}.name", f"missing or not a string ({name!r}): give the station a name")
@@ -254,7 +254,12 @@ def _stations(r, items, graph):
         window_m = r.number(item, "window_m", where, positive=True, default=ld.DEFAULT_WINDOW_M)
         if window_m < ld.MIN_WINDOW_M:
             r.fail(f"{where}.window_m", f"{window_m} m is finer than a train stops: give at least {ld.MIN_WINDOW_M}")
-        stations.append(NetworkStation(name, section, offset, window_m))
+        length = graph.sections[section].length_m
+        back = r.number(item, "back_offset_m", where, default=length - offset)
+        if not 0.0 <= back <= length:
+            r.fail(f"{where}.back_offset_m", f"{back} is off the graph: section {section} runs from 0 to "
+                                             f"{length:.4f} m")
+        stations.append(NetworkStation(name, section, offset, window_m, back))
     return stations
 
 

@@ -14,8 +14,13 @@ from cbtc.railway.layout import Block, Layout, Station, Tag
 class NetworkStation:
     name: str
     section: str
-    offset_m: float    # stop point for the train's head, from the section's start
+    offset_m: float        # stop point of the head of a train running the section forwards, from its start
     window_m: float
+    back_offset_m: float   # ... of one running it backwards (by default as far from the section's end)
+
+    def stop_m(self, forward):
+        """The head's stop point (offset from the section's start) for a train running the section this way."""
+        return self.offset_m if forward else self.back_offset_m
 
 
 @dataclass(frozen=True)
@@ -52,12 +57,14 @@ class NetworkLayout:
 
 def route_layout(network, steps, name=None) -> Layout:
     """The single-path Layout a train on the route `steps` runs on: the route flattened into one path (a loop when it
-    comes round), the stations and tags on its sections at their route coordinates, one fixed block per section
+    comes round), the stations on its sections at their stop points for the way the route runs them and the tags at
+    their route coordinates, one fixed block per section
     (signals at the switches' toes and heels), the network's IPS frame. Positions convert back with Route.locate."""
     route = network.graph.route(steps)
     path = route.path()
-    stations = [Station(st.name, route.s_of(st.section, st.offset_m), st.window_m) for st in network.stations
-                if route.s_of(st.section, st.offset_m) is not None]
+    direction = dict(route.steps)
+    stations = [Station(st.name, route.s_of(st.section, st.stop_m(direction[st.section])), st.window_m)
+                for st in network.stations if st.section in direction]
     tags = [Tag(t.uid, route.s_of(t.section, t.offset_m)) for t in network.tags
             if route.s_of(t.section, t.offset_m) is not None]
     if route.closed:
