@@ -5,6 +5,7 @@ from hypothesis import strategies as st
 
 from cbtc.railway.layout_dict import layout_from_dict
 from cbtc.sim.network_position import NetworkPosition
+from cbtc.sim.network_truth import collisions  # noqa: F401  (the tests' truth is the simulator's)
 
 
 def network(elements):
@@ -112,17 +113,3 @@ def truth_spans(trains, sigma_m):
         out[t] = train.span()
         train.sigma_m = keep
     return out
-
-
-def collisions(graph, spans):
-    """(a, b, section, section) of every two trains on one stretch of one section, or on one switch or crossing."""
-    found = []
-    names = sorted(spans)
-    for i, a in enumerate(names):
-        for b in names[i + 1:]:
-            for sa, lo_a, hi_a in spans[a]:
-                for sb, lo_b, hi_b in spans[b]:
-                    same_piece = graph.sections[sa].piece and graph.sections[sa].piece == graph.sections[sb].piece
-                    if (sa == sb and lo_a < hi_b and lo_b < hi_a) or same_piece:
-                        found.append((a, b, sa, sb))
-    return found

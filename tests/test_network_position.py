@@ -65,3 +65,16 @@ def test_reversing_makes_the_tail_the_head():
     assert train.head == ("west_1", pytest.approx(0.15), False)
     train.advance(0.4, {"WA": "straight"})
     assert train.steps[-1] == ("WA.straight", False) and train.head[1] == pytest.approx(0.256 - (0.4 - 0.15))
+
+
+def test_truth_counts_a_collision_on_a_section_or_one_piece():
+    from cbtc.sim.network_truth import collisions
+
+    g = _loop()
+    assert collisions(g, {"A": (("main", 0.5, 0.75),), "B": (("main", 0.76, 1.0),)}) == []
+    assert collisions(g, {"A": (("main", 0.5, 0.75),), "B": (("main", 0.7, 1.0),)}) == [("A", "B", "main", "main")]
+    # on the two legs of one switch: the piece is one, whoever moved
+    assert collisions(g, {"A": (("W1.straight", 0.2, 0.256),), "B": (("W1.diverging", 0.25, 0.28),)}) == \
+        [("A", "B", "W1.straight", "W1.diverging")]
+    f8 = load_track("lego_figure_eight").graph
+    assert collisions(f8, {"A": (("X.a", 0.0, 0.01),), "B": (("X.b", 0.12, 0.128),)}) == [("A", "B", "X.a", "X.b")]
