@@ -3,7 +3,8 @@
 The limit is the first of: the rear-most plausible tail of any other train whose span (widened by its uncertainty)
 lies on the route ahead or fouls it at a switch the route runs through (a train converging on the other leg of a
 merge included), a switch whose detected position is not the route's leg (moving, detection lost, wrong leg), the end
-of the held route (the end of the track included: a route ends at a buffer stop at the latest). Pure: values in.
+of the held route (the end of the track included: a route ends at a buffer stop at the latest). The fixed-block
+baseline stops a train at the signal before the first occupied section instead. Pure: values in.
 """
 
 from dataclasses import dataclass
@@ -34,3 +35,23 @@ def network_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
                 best = NetworkLimit(distance, f"switch {switch}: the route needs {leg}, it is {state}")
             break
     return best
+
+
+def fixed_block_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
+    """The fixed-block baseline on a network: signals at every section's entry (so at every switch's toe and heels),
+    and a train may run up to the signal in front of the first section ahead that another train occupies or fouls
+    (any part of a switch or crossing occupied fouls all of it); never past what moving block allows either."""
+    bound = network_limit(route, head_s_m, own, spans, detected_legs)
+    graph = route.graph
+    occupied = {name for train, intervals in spans.items() if train != own for name, _lo, _hi in intervals}
+    fouled = occupied | {n for n, s in graph.sections.items() if s.piece and
+                         any(graph.sections[o].piece == s.piece for o in occupied)}
+    ahead = []
+    for (name, _fwd), start in zip(route.steps, route.starts_m):
+        d = (start - head_s_m) % route.length_m if route.closed else start - head_s_m
+        if d > 0.0:
+            ahead.append((d, name))
+    for d, name in sorted(ahead):
+        if name in fouled and d < bound.distance_m:
+            return NetworkLimit(d, f"block {name} occupied: its signal is at danger")
+    return bound
