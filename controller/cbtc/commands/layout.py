@@ -79,8 +79,8 @@ def describe_network(layout) -> dict:
     crossings = sorted({s.crossing for s in graph.sections.values() if s.crossing})
     return {"name": layout.name, "source": layout.source, "kind": "network", "length_m": round(layout.length_m, 4),
             "sections": sections, "switches": switches, "crossings": crossings,
-            "stations": [{"name": s.name, "section": s.section, "offset_m": s.offset_m, "window_m": s.window_m}
-                         for s in layout.stations],
+            "stations": [{"name": s.name, "section": s.section, "offset_m": s.offset_m,
+                          "back_offset_m": round(s.back_offset_m, 4), "window_m": s.window_m} for s in layout.stations],
             "tags": tags}
 
 
@@ -100,7 +100,7 @@ def _show_network(info):
     if info["stations"]:
         print("\nstations:")
         print(format_table(info["stations"], [("name", "name"), ("section", "section"), ("offset_m", "offset m"),
-                                              ("window_m", "window m")]))
+                                              ("back_offset_m", "backwards m"), ("window_m", "window m")]))
     if info["tags"]:
         print("\nRFID tags:")
         print(format_table(info["tags"], [("uid", "uid"), ("section", "section"), ("offset_m", "offset m"),
