@@ -270,11 +270,14 @@ def draw_network_png(layout, path):
     for node in graph.nodes:
         if not node.side_b:
             ax.plot(*node.xy_m, "|", color="black", ms=14, mew=3, zorder=4)
-    for st in layout.stations:
+    track_xy = np.concatenate(xy_all)
+    for st in layout.stations:   # each name on the side of its track with the more room
         x, y, h = graph.sections[st.section].path.pose(st.offset_m)
+        sides = [(x + k * 0.05 * size * -np.sin(h), y + k * 0.05 * size * np.cos(h)) for k in (1.0, -1.0)]
+        label = max(sides, key=lambda p: np.min(np.hypot(track_xy[:, 0] - p[0], track_xy[:, 1] - p[1])))
         ax.plot(x, y, "s", color="tab:blue", ms=8, zorder=3)
-        ax.annotate(st.name, (x, y), (x + 0.05 * size * np.sin(h), y - 0.05 * size * np.cos(h)), color="tab:blue",
-                    fontsize=8, fontweight="bold", ha="center", va="center")
+        ax.annotate(st.name, (x, y), label, color="tab:blue", fontsize=8, fontweight="bold", ha="center",
+                    va="center")
     for tag in layout.tags:
         x, y = layout.xy_m(tag.section, tag.offset_m)
         ax.plot(x, y, "o", color="tab:orange", ms=4, zorder=3)
