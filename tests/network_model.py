@@ -53,45 +53,6 @@ ELEMENTS = st.lists(st.one_of(st.tuples(st.just("run"), st.integers(1, 3)),
                     min_size=1, max_size=5)
 
 
-class Train:
-    """A model train: the steps it has run (a route on the graph), its head's coordinate along them, its length and
-    its uncertainty (its span is widened by it both ways)."""
-
-    def __init__(self, graph, step, head_m, length_m, sigma_m):
-        self.graph, self.steps, self.head_m = graph, [step], head_m
-        self.length_m, self.sigma_m = length_m, sigma_m
-
-    def advance(self, d_m, switch_legs):
-        self.head_m += d_m
-        while True:
-            route = self.graph.route(self.steps)
-            if self.head_m <= route.length_m:
-                return
-            nxt = self.graph.next_steps(*self.steps[-1], switch_legs)
-            nxt = [s for s in nxt if s[0] not in {n for n, _f in self.steps}]
-            if not nxt:                      # a buffer stop or a switch set against it: it stops there
-                self.head_m = route.length_m
-                return
-            self.steps.append(nxt[0])
-
-    def span(self):
-        route = self.graph.route(self.steps)
-        lo, hi = max(0.0, self.head_m - self.length_m - self.sigma_m), self.head_m + self.sigma_m
-        out = []
-        for (name, forward), start in zip(route.steps, route.starts_m):
-            length = self.graph.sections[name].length_m
-            a, b = max(lo, start), min(hi, start + length)
-            if a <= b:
-                out.append((name, a - start, b - start) if forward else (name, start + length - b,
-                                                                          start + length - a))
-        excess = hi - route.length_m
-        if excess > 0:                      # ahead of the head: every way it could go, whatever the switches
-            for name, forward in self.graph.next_steps(*route.steps[-1]):
-                length = self.graph.sections[name].length_m
-                out.append((name, 0.0, min(excess, length)) if forward else (name, max(0.0, length - excess), length))
-        return tuple(out)
-
-
 class RunningTrain(NetworkPosition):
     """A model train that may come round again (the simulator's true position on a network), with the uncertainty
     its span is widened by."""
@@ -102,6 +63,33 @@ class RunningTrain(NetworkPosition):
 
     def span(self, widen_m=None):
         return super().span(self.sigma_m if widen_m is None else widen_m)
+
+
+class Train(RunningTrain):
+    """A model train for the interlocking's properties: it keeps every step it has run and never runs one twice (a
+    buffer stop, a switch set against it or track it has run already stops it)."""
+
+    def advance(self, d_m, switch_legs):
+        self.head_m += d_m
+        while True:
+            route = self.graph.route(self.steps)
+            if self.head_m <= route.length_m:
+                return
+            nxt = self.graph.next_steps(*self.steps[-1], switch_legs)
+            nxt = [s for s in nxt if s[0] not in {n for n, _f in self.steps}]
+            if not nxt:
+                self.head_m = route.length_m
+                return
+            self.steps.append(nxt[0])
+            self._route = None
+
+
+def world_now(machines, trains, now_s):
+    """The switches moved on to `now_s`: (detected legs, the legs the blades lie in, every train's widened span)."""
+    for m in machines.values():
+        m.step(now_s)
+    return ({w: m.detected(now_s) for w, m in machines.items()}, {w: m.physical(now_s) for w, m in machines.items()},
+            {t: tr.span() for t, tr in trains.items()})
 
 
 def truth_spans(trains, sigma_m):

@@ -11,7 +11,7 @@ from cbtc.layout_files import load_track
 from cbtc.railway.dispatcher import Dispatcher
 from cbtc.railway.interlocking import Interlocking
 from cbtc.sim.switch_machines import SwitchMachine
-from network_model import RunningTrain, collisions, truth_spans
+from network_model import RunningTrain, collisions, truth_spans, world_now
 
 DT_S, V_MAX_MPS, ACCEL_MPS2, BRAKE_MPS2, MARGIN_M, SIGMA_M, DWELL_S = 0.05, 0.3, 0.5, 0.4, 0.05, 0.02, 2.0
 WEST, MIDDLE, EAST = ("west_1", "west_2"), ("middle_main", "middle_loop"), ("east_1", "east_2")
@@ -44,11 +44,7 @@ def run_plans(layout_name, starts, plans, seconds, v_max=None, dwell=None):
     waiting_since, count = {t: DWELL_S for t in trains}, 0
     for tick in range(int(seconds / DT_S)):
         now_s = tick * DT_S
-        for m in machines.values():
-            m.step(now_s)
-        detected = {w: m.detected(now_s) for w, m in machines.items()}
-        physical = {w: m.physical(now_s) for w, m in machines.items()}
-        spans = {t: tr.span() for t, tr in trains.items()}
+        detected, physical, spans = world_now(machines, trains, now_s)
         ixl.release_behind(spans)
         for t in sorted(trains, key=lambda t: waiting_since.get(t, math.inf)):
             if goal[t] is not None or now_s < ready_s[t]:

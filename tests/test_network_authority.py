@@ -12,7 +12,7 @@ from cbtc.authority.network_limit import fixed_block_limit, network_limit
 from cbtc.layout_files import load_track
 from cbtc.railway.interlocking import Interlocking, find_routes
 from cbtc.sim.switch_machines import SWITCH_FAULTS, SwitchMachine
-from network_model import RunningTrain, collisions, truth_spans
+from network_model import RunningTrain, collisions, truth_spans, world_now
 
 DT_S, V_MAX_MPS, ACCEL_MPS2, BRAKE_MPS2, MARGIN_M, SIGMA_M = 0.05, 0.3, 0.5, 0.4, 0.05, 0.02
 
@@ -50,11 +50,7 @@ def run(layout_name, placements, plans, seconds, faults=None, following=True, v_
     count, waiting_since = 0, {}
     for tick in range(int(seconds / DT_S)):
         now_s = tick * DT_S
-        for m in machines.values():
-            m.step(now_s)
-        detected = {w: m.detected(now_s) for w, m in machines.items()}
-        physical = {w: m.physical(now_s) for w, m in machines.items()}
-        spans = {t: tr.span() for t, tr in trains.items()}
+        detected, physical, spans = world_now(machines, trains, now_s)
         ixl.release_behind(spans)
         for t in sorted(trains, key=lambda t: waiting_since.setdefault(t, tick)):   # first come, first served
             tr = trains[t]
