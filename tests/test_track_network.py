@@ -239,8 +239,12 @@ def test_what_lies_ahead_on_a_route():
                                                                       ("W2", 1.548, "straight")]
     assert ahead.end_m == pytest.approx(route.length_m - 0.5)
     # a switch not detected in the route's leg ends the limit before any train past it
-    assert ahead.first_limit_m({"W1": "diverging", "W2": "straight"}) == pytest.approx(0.524)
-    assert ahead.first_limit_m({"W1": "straight", "W2": "straight"}) == pytest.approx(1.28)
+    from cbtc.authority.network_limit import network_limit
+
+    assert network_limit(route, 0.5, "C", spans, {"W1": "diverging", "W2": "straight"}).distance_m == \
+        pytest.approx(0.524)
+    assert network_limit(route, 0.5, "C", spans, {"W1": "straight", "W2": "straight"}).distance_m == \
+        pytest.approx(1.28)
     # past W1, on its leg: the switch is at distance 0; a train behind is not ahead
     on_w1 = look_ahead(route, 1.1, {"C": (("west_line", 0.0, 0.2),)})
     assert on_w1.switches[0] == ("W1", 0.0, "straight") and on_w1.trains == ()

@@ -10,6 +10,7 @@ baseline stops a train at the signal before the first occupied section instead. 
 from dataclasses import dataclass
 
 from cbtc.railway.ahead import look_ahead
+from cbtc.railway.geometry import forward_m
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,7 @@ def fixed_block_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimi
                          any(graph.sections[o].piece == s.piece for o in occupied)}
     ahead = []
     for (name, _fwd), start in zip(route.steps, route.starts_m):
-        d = (start - head_s_m) % route.length_m if route.closed else start - head_s_m
+        d = forward_m(head_s_m, start, route.length_m if route.closed else None)
         if d > 0.0:
             ahead.append((d, name))
     for d, name in sorted(ahead):

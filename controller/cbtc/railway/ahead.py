@@ -11,6 +11,8 @@ to where the route enters each; the distance to the route's end.
 from dataclasses import dataclass
 from math import inf
 
+from cbtc.railway.geometry import forward_m
+
 
 def ahead_index(count, i, closed):
     """The index of the train ahead of the `i`-th of `count` trains ordered by head position along one path, or None:
@@ -39,36 +41,23 @@ class Ahead:
     switches: tuple    # ((switch, distance_m, leg), ...) in route order: where the route enters the switch, its leg
     end_m: float       # to the end of the route; inf on a closed route
 
-    def first_limit_m(self, detected_legs):
-        """Distance to the first of: a train, a switch not detected in the route's leg (`detected_legs` maps switch
-        -> detected leg, None while moving or lost), the route's end."""
-        limit = self.trains[0][1] if self.trains else inf
-        for switch, distance, leg in self.switches:
-            if detected_legs.get(switch) != leg:
-                limit = min(limit, distance)
-                break
-        return min(limit, self.end_m)
-
-
-def _forward(a_m, b_m, length_m, closed):
-    return (b_m - a_m) % length_m if closed else b_m - a_m
-
 
 def look_ahead(route, head_s_m, spans, own=None):
     """What lies ahead of a head at route coordinate `head_s_m`. `spans` maps train -> ((section, lo_m, hi_m), ...),
     each already widened by its uncertainty; `own` names the train itself, whose span is left out."""
     graph, length, closed = route.graph, route.length_m, route.closed
+    loop_m = length if closed else None      # forward_m's loop length: None on an open route
     on_route = {name: (start, forward) for (name, forward), start in zip(route.steps, route.starts_m)}
     piece_entry = {}     # switch or crossing -> distance to where the route enters it
     switches = []
     for (name, _fwd), start in zip(route.steps, route.starts_m):
         section = graph.sections[name]
         if section.piece:
-            into = _forward(start, head_s_m, length, closed)     # how far the head is past the route's entry
+            into = forward_m(start, head_s_m, loop_m)            # how far the head is past the route's entry
             if 0.0 <= into < section.length_m:
                 d = 0.0                                          # on the piece
             elif closed or into < 0.0:
-                d = _forward(head_s_m, start, length, closed)
+                d = forward_m(head_s_m, start, loop_m)
             else:
                 continue                                         # passed
             piece_entry[section.piece] = min(d, piece_entry.get(section.piece, inf))
@@ -82,18 +71,17 @@ def look_ahead(route, head_s_m, spans, own=None):
             piece = graph.sections[name].piece      # one train anywhere on a switch or crossing fouls all of it
             if piece in piece_entry:
                 found[train] = min(found.get(train, inf), piece_entry[piece])
-            if name in on_route:
-                start, forward = on_route[name]
-                sec_len = graph.sections[name].length_m
-                a, b = (start + lo, start + hi) if forward else (start + sec_len - hi, start + sec_len - lo)
-                if closed:
-                    d = 0.0 if _forward(a, head_s_m, length, True) <= b - a else _forward(head_s_m, a, length, True)
-                elif b < head_s_m:
-                    continue
-                else:
-                    d = max(a - head_s_m, 0.0)
-            else:
+            if name not in on_route:
                 continue
+            start, forward = on_route[name]
+            sec_len = graph.sections[name].length_m
+            a, b = (start + lo, start + hi) if forward else (start + sec_len - hi, start + sec_len - lo)
+            if closed:
+                d = 0.0 if forward_m(a, head_s_m, loop_m) <= b - a else forward_m(head_s_m, a, loop_m)
+            elif b < head_s_m:
+                continue
+            else:
+                d = max(a - head_s_m, 0.0)
             found[train] = min(found.get(train, inf), d)
     end_m = inf if closed else max(length - head_s_m, 0.0)
     return Ahead(tuple(sorted(found.items(), key=lambda kv: (kv[1], kv[0]))), tuple(switches), end_m)

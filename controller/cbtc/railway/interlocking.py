@@ -83,11 +83,6 @@ class Interlocking:
         """The routes holding `section` (more than one only where trains follow each other the same way)."""
         return [r for r in self.routes.values() if any(name == section for name, _fwd in r.held_steps)]
 
-    def route_of_section(self, section):
-        """The first route holding `section`, or None."""
-        held = self.routes_of_section(section)
-        return held[0] if held else None
-
     def switch_locks(self, switch):
         """The routes holding a leg of `switch`: a switch is locked while any of its legs is held."""
         return [r for r in self.routes.values()

@@ -210,19 +210,30 @@ def _stations(r, items, length, closed):
     for i, item in enumerate(r.sequence(items, "stations")):
         where = f"stations[{i}]"
         item = r.mapping(item, where, ("name", "s_m", "window_m"))
-        name = item.get("name")
-        if not isinstance(name, str) or not name:
-            r.fail(f"{where}.name", f"missing or not a string ({name!r}): give the station a name")
-        if name in seen:
-            r.fail(f"{where}.name", f"duplicate station name {name!r}: names must be unique")
-        seen.add(name)
+        name = read_station_name(r, item, where, seen)
         s_m = _on_track(r, r.number(item, "s_m", where), f"{where}.s_m", length, closed)
-        window_m = r.number(item, "window_m", where, positive=True, default=DEFAULT_WINDOW_M)
-        if window_m < MIN_WINDOW_M:
-            r.fail(f"{where}.window_m", f"{window_m} m is finer than a train stops (a board holds a train braked onto "
-                   f"its mark up to 3 mm short): give at least {MIN_WINDOW_M}")
-        stations.append(Station(name, s_m, window_m))
+        stations.append(Station(name, s_m, read_window(r, item, where)))
     return stations
+
+
+def read_station_name(r, item, where, seen):
+    """The station's name, checked to be a string no station in `seen` has; added to `seen`."""
+    name = item.get("name")
+    if not isinstance(name, str) or not name:
+        r.fail(f"{where}.name", f"missing or not a string ({name!r}): give the station a name")
+    if name in seen:
+        r.fail(f"{where}.name", f"duplicate station name {name!r}: names must be unique")
+    seen.add(name)
+    return name
+
+
+def read_window(r, item, where):
+    """The station's stop window (m), at least MIN_WINDOW_M."""
+    window_m = r.number(item, "window_m", where, positive=True, default=DEFAULT_WINDOW_M)
+    if window_m < MIN_WINDOW_M:
+        r.fail(f"{where}.window_m", f"{window_m} m is finer than a train stops (a board holds a train braked onto "
+               f"its mark up to 3 mm short): give at least {MIN_WINDOW_M}")
+    return window_m
 
 
 def _tags(r, items, length, closed):

@@ -231,11 +231,15 @@ def _on_graph(r, graph, item, where, key):
     if not isinstance(section, str) or section not in graph.sections:
         r.fail(f"{where}.section", f"{section!r} is off the graph: no such section; sections are "
                f"{', '.join(graph.sections)}")
+    return section, _on_section(r, graph, section, r.number(item, key, where), f"{where}.{key}")
+
+
+def _on_section(r, graph, section, offset, key):
+    """`offset` (m), checked to lie on `section`."""
     length = graph.sections[section].length_m
-    offset = r.number(item, key, where)
     if not 0.0 <= offset <= length:
-        r.fail(f"{where}.{key}", f"{offset} is off the graph: section {section} runs from 0 to {length:.4f} m")
-    return section, offset
+        r.fail(key, f"{offset} is off the graph: section {section} runs from 0 to {length:.4f} m")
+    return offset
 
 
 def _stations(r, items, graph):
@@ -244,21 +248,12 @@ def _stations(r, items, graph):
         where = f"stations[{i}]"
         r.line = line_of(items, i)
         item = r.mapping(item, where, ("name", "section", "offset_m", "back_offset_m", "window_m"))
-        name = item.get("name")
-        if not isinstance(name, str) or not name:
-            r.fail(f"{where}.name", f"missing or not a string ({name!r}): give the station a name")
-        if name in seen:
-            r.fail(f"{where}.name", f"duplicate station name {name!r}: names must be unique")
-        seen.add(name)
+        name = ld.read_station_name(r, item, where, seen)
         section, offset = _on_graph(r, graph, item, where, "offset_m")
-        window_m = r.number(item, "window_m", where, positive=True, default=ld.DEFAULT_WINDOW_M)
-        if window_m < ld.MIN_WINDOW_M:
-            r.fail(f"{where}.window_m", f"{window_m} m is finer than a train stops: give at least {ld.MIN_WINDOW_M}")
+        window_m = ld.read_window(r, item, where)
         length = graph.sections[section].length_m
-        back = r.number(item, "back_offset_m", where, default=length - offset)
-        if not 0.0 <= back <= length:
-            r.fail(f"{where}.back_offset_m", f"{back} is off the graph: section {section} runs from 0 to "
-                                             f"{length:.4f} m")
+        back = _on_section(r, graph, section, r.number(item, "back_offset_m", where, default=length - offset),
+                           f"{where}.back_offset_m")
         stations.append(NetworkStation(name, section, offset, window_m, back))
     return stations
 

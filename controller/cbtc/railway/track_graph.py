@@ -35,13 +35,6 @@ class Section:
     def length_m(self):
         return self.path.length_m
 
-    def end_pose(self, which):
-        """(x_m, y_m, outward heading_rad) of the section's `which` end ("start" or "end")."""
-        if which == START:
-            x, y, h = self.path.start_pose
-            return x, y, h + pi
-        return self.path.end_pose
-
 
 @dataclass(frozen=True)
 class Switch:
@@ -213,7 +206,3 @@ def single_section_graph(path: Path, name="main") -> TrackGraph:
     else:
         nodes = [Node((x0, y0), ((name, START),), ()), Node((x1, y1), ((name, END),), ())]
     return TrackGraph([section], [], nodes)
-
-
-def distance_m(a, b):
-    return hypot(a[0] - b[0], a[1] - b[1])
