@@ -121,29 +121,23 @@ class Dispatcher:
         in order of preference (no reversal first, then the shortest), each keeping the railway live. `first` names
         the train that has waited longest: another train is offered only moves that bring the railway closer to a
         state where `first` has a move, or keep the move it has, so no train waits for ever."""
-        plan = self.plans[train]
-        stop = plan[index[train] % len(plan)]
-        here = at[train]
-        others = {s for t, s in at.items() if t != train}
-        now = self._state(at, index)
-        self.live(at, index)
-        waiting = None
+        self.live(at, index)                  # the states reachable from here, analysed
+        graph, good = self._analysis
+        now, me = self._state(at, index), self._trains.index(train)
+        distance = waiting = None
         if first is not None and first != train and first in at:
             distance = self._distances(self._trains.index(first))
             waiting = distance.get(now)
         out = []
-        for station in stop:
-            if station in others:
-                continue
-            after_at = dict(at, **{train: station})
-            after_index = dict(index, **{train: index[train] + 1})
-            if not self.live(after_at, after_index):
+        for mover, after in graph[now]:
+            if mover != me or after not in good:
                 continue
             if waiting is not None:   # only a move that brings `first`'s turn nearer, or keeps the one it has
-                then = self._distances(self._trains.index(first)).get(self._state(after_at, after_index))
+                then = distance.get(after)
                 if then is None or (then >= waiting and then > 0):
                     continue
-            for fwd, steps in self._routes(here, station):
+            station = after[0][me]
+            for fwd, steps in self._routes(at[train], station):
                 out.append(Move(station, steps, fwd != forward))
         out.sort(key=lambda m: (m.reverse, len(m.steps)))
         return out

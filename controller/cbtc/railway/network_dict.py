@@ -71,6 +71,11 @@ def _pose(r, spec, where):
             math.radians(r.number(spec, "heading_deg", where, default=0.0)))
 
 
+def _anchor_key(kind):
+    """The key naming the end an item is placed at: a section starts `from` one, a switch or crossing lies `at` one."""
+    return "from" if kind == "section" else "at"
+
+
 def _read_item(r, items, i, names):
     """Check track item `i` and return it as (index, line, kind, id, item, segments) to place."""
     item, where = items[i], f"track[{i}]"
@@ -89,10 +94,10 @@ def _read_item(r, items, i, names):
     if ident in names:
         r.fail(f"{where}.{kind}", f"{ident!r} is used twice (first at track[{names[ident]}]): give each its own")
     names[ident] = i
-    anchors = [k for k in ("start", "from" if kind == "section" else "at") if k in item]
+    anchor_key = _anchor_key(kind)
+    anchors = [k for k in ("start", anchor_key) if k in item]
     if len(anchors) > 1:
         r.fail(where, f"give '{anchors[0]}' or '{anchors[1]}', not both")
-    anchor_key = "from" if kind == "section" else "at"
     if anchor_key in item and not isinstance(item[anchor_key], str):
         r.fail(f"{where}.{anchor_key}", f"must name an end such as main.end or W1.diverging, got {item[anchor_key]!r}")
     if kind == "section":
@@ -122,7 +127,7 @@ def _place(r, items):
     while pending:
         left = []
         for entry in pending:
-            anchor = entry[4].get("from" if entry[2] == "section" else "at")
+            anchor = entry[4].get(_anchor_key(entry[2]))
             if anchor is not None and anchor not in ends:
                 left.append(entry)
             else:
@@ -189,7 +194,7 @@ def _place_crossing(r, item, ident, ends, sections, where, label):
 def _unresolved(r, entry, items, names):
     """Fail on an item whose anchor no placed end answers: a bad name, an unknown end, or a circle of anchors."""
     i, line, kind, _ident, item, _segs = entry
-    key = "from" if kind == "section" else "at"
+    key = _anchor_key(kind)
     r.line = line_of(item, key) or line
     anchor = item[key]
     if not isinstance(anchor, str) or "." not in anchor:
