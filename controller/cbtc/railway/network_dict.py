@@ -144,16 +144,7 @@ def _place_item(r, entry, ends, sections, switches):
     where = f"track[{i}]"
     label = (i, line, f"{kind} {ident}")
     if kind == "section":
-        anchor = item.get("from")
-        if anchor is None:
-            x, y, h = _pose(r, item.get("start", {}), f"{where}.start")
-        else:
-            e = ends[anchor]
-            x, y, h = e.x_m, e.y_m, e.out_rad
-        path = Path(segs, x, y, h)
-        sections.append(Section(ident, path))
-        ends[f"{ident}.start"] = _End(f"{ident}.start", (x, y, h + math.pi), ((ident, START),), label)
-        ends[f"{ident}.end"] = _End(f"{ident}.end", path.end_pose, ((ident, END),), label)
+        _add_section(Section(ident, Path(segs, *_anchor_pose(r, item, "from", ends, where))), sections, ends, label)
         return
     if kind == "crossing":
         _place_crossing(r, item, ident, ends, sections, where, label)
@@ -168,27 +159,36 @@ def _place_item(r, entry, ends, sections, switches):
                                 label)
 
 
+def _anchor_pose(r, item, key, ends, where):
+    """(x, y, heading) an item starts from: its `start` pose, or the outward pose of the end its `key` names."""
+    if key not in item:
+        return _pose(r, item.get("start", {}), f"{where}.start")
+    e = ends[item[key]]
+    return e.x_m, e.y_m, e.out_rad
+
+
+def _add_section(section, sections, ends, label):
+    """Add a section and its two ends (`name.start`, `name.end`, facing out of it)."""
+    sections.append(section)
+    name, (x, y, h) = section.name, section.path.start_pose
+    ends[f"{name}.start"] = _End(f"{name}.start", (x, y, h + math.pi), ((name, START),), label)
+    ends[f"{name}.end"] = _End(f"{name}.end", section.path.end_pose, ((name, END),), label)
+
+
 def _place_crossing(r, item, ident, ends, sections, where, label):
     """A crossing's two tracks, `a` and `b` (a's heading + 90 degrees), from a start pose or from the end a's start
     (by: a) or b's start (by: b) is placed at."""
-    if "at" not in item:
-        x, y, h = _pose(r, item.get("start", {}), f"{where}.start")
-    else:
-        e = ends[item["at"]]
-        x, y, h = e.x_m, e.y_m, e.out_rad
-        if item.get("by", "a") == "b":     # from b's start to the middle, then back along a to a's start
-            mx, my = x + CROSSING_HALF_M * math.cos(h), y + CROSSING_HALF_M * math.sin(h)
-            h -= math.pi / 2
-            x, y = mx - CROSSING_HALF_M * math.cos(h), my - CROSSING_HALF_M * math.sin(h)
+    x, y, h = _anchor_pose(r, item, "at", ends, where)
+    if "at" in item and item.get("by", "a") == "b":     # from b's start to the middle, then back along a to a's start
+        mx, my = x + CROSSING_HALF_M * math.cos(h), y + CROSSING_HALF_M * math.sin(h)
+        h -= math.pi / 2
+        x, y = mx - CROSSING_HALF_M * math.cos(h), my - CROSSING_HALF_M * math.sin(h)
     mx, my = x + CROSSING_HALF_M * math.cos(h), y + CROSSING_HALF_M * math.sin(h)
     hb = h + math.pi / 2
     starts = {"a": (x, y, h), "b": (mx - CROSSING_HALF_M * math.cos(hb), my - CROSSING_HALF_M * math.sin(hb), hb)}
-    for track, (sx, sy, sh) in starts.items():
-        name = f"{ident}.{track}"
-        path = Path([("straight", 2 * CROSSING_HALF_M)], sx, sy, sh)
-        sections.append(Section(name, path, crossing=ident))
-        ends[f"{name}.start"] = _End(f"{name}.start", (sx, sy, sh + math.pi), ((name, START),), label)
-        ends[f"{name}.end"] = _End(f"{name}.end", path.end_pose, ((name, END),), label)
+    for track, pose in starts.items():
+        path = Path([("straight", 2 * CROSSING_HALF_M)], *pose)
+        _add_section(Section(f"{ident}.{track}", path, crossing=ident), sections, ends, label)
 
 
 def _unresolved(r, entry, items, names):
@@ -220,15 +220,13 @@ def _end_names(item):
 
 def _switch_toe(r, item, segs, ends, where):
     """The toe pose (x, y, heading into the legs) of a switch placed by `start`, or by its toe or a heel `at` an end."""
-    if "at" not in item:
-        return _pose(r, item.get("start", {}), f"{where}.start")
-    e = ends[item["at"]]
-    by = item.get("by", "toe")
+    ex, ey, eh = _anchor_pose(r, item, "at", ends, where)
+    by = item.get("by", "toe")    # a heel needs `at` (checked as the item was read)
     if by == "toe":
-        return e.x_m, e.y_m, e.out_rad
+        return ex, ey, eh
     hx, hy, hh = Path(segs[by], 0.0, 0.0, 0.0).end_pose
-    h = e.out_rad + math.pi - hh
-    return (e.x_m - (hx * math.cos(h) - hy * math.sin(h)), e.y_m - (hx * math.sin(h) + hy * math.cos(h)), h)
+    h = eh + math.pi - hh
+    return ex - (hx * math.cos(h) - hy * math.sin(h)), ey - (hx * math.sin(h) + hy * math.cos(h)), h
 
 
 def _on_graph(r, graph, item, where, key):
