@@ -16,7 +16,8 @@ from cbtc.cli import main
 from cbtc.experiments import campaign
 from cbtc.sim import faults
 
-RUNS = len(campaign.CLASSES)   # one run of each class
+PATH_CLASSES = [c for c in campaign.CLASSES if campaign.runs_on(c, "itb_square")]   # the switch faults need a network
+RUNS = len(PATH_CLASSES)   # one run of each class that runs on itb_square
 SMALL = ["campaign", "--runs", str(RUNS), "--duration", "6", "--trains", "2", "--layouts", "itb_square"]
 
 
@@ -31,7 +32,9 @@ def test_the_plan_is_drawn_from_the_seeds_alone_and_a_longer_campaign_extends_a_
     short, long = campaign.plan(40, *args), campaign.plan(400, *args)
     assert long[:40] == short and campaign.plan(40, *args) == short
     assert {spec.fault_class for spec in long} == set(campaign.CLASSES)
-    assert {(spec.layout, spec.trains) for spec in long} == {(lay, n) for lay in campaign.LAYOUTS for n in range(2, 7)}
+    assert {(spec.layout, spec.trains) for spec in long} == {
+        (lay, min(n, campaign.NETWORK_FLEET) if campaign.is_network(lay) else n)
+        for lay in campaign.LAYOUTS for n in range(2, 7)}   # a network holds at most NETWORK_FLEET
     for spec in long:
         assert all(faults.parse(text) for text in spec.faults)
         if spec.fault_class == "overlapping":
@@ -93,7 +96,7 @@ def test_a_stopped_campaign_run_again_makes_only_the_missing_runs(tmp_path, caps
     record = json.loads(lines[0])
     results.write_text("\n".join([json.dumps(dict(record, code="other"))] + lines[1:]) + "\n")
     assert figures(capsys, SMALL + ["--results", str(results)])[1]["runs_made"] == 1
-    assert set(first["by_fault"]) == set(campaign.CLASSES) and first["by_fault"]["none"]["runs"] == 1
+    assert set(first["by_fault"]) == set(PATH_CLASSES) and first["by_fault"]["none"]["runs"] == 1
     for key in ("runs", "collisions", "authority_overruns", "emergency_trips", "stranded", "violations"):
         assert key in first and all(key in row for row in first["by_fault"].values() if key != "violations")
     # exit 1 exactly when a run broke the rules, and each printed command reproduces its violation alone
@@ -144,7 +147,7 @@ def test_a_scenario_campaign_refuses_what_the_file_sets(capsys, extra, named):
 
 
 def test_a_run_that_raises_is_recorded_as_a_violation_and_the_campaign_goes_on(monkeypatch):
-    spec = campaign.plan(2, campaign.CLASSES, ("itb_square",), (2,), 5.0, 0)[0]
+    spec = campaign.plan(2, PATH_CLASSES, ("itb_square",), (2,), 5.0, 0)[0]
 
     def broken(self):
         raise ZeroDivisionError("float division by zero")

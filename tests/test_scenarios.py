@@ -207,7 +207,7 @@ def test_a_dwell_ends_within_a_fast_report_of_its_time():
             if due_s is not None and state.dwell_until_s is None:
                 late_s.append(now_s - due_s)
             return stop_m
-    zc.stops = Timed(zc.stops.layout, zc.stops.rng)
+    zc.stops = Timed(zc.stops.rng)
     sim.run()
     assert len(late_s) >= 6 and 0.0 <= min(late_s) and max(late_s) <= 0.025, late_s
 

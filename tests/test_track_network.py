@@ -198,7 +198,7 @@ def test_layout_show_and_list_networks(tmp_path, capsys):
     assert any(line.split()[:2] == ["lego_branch", "network"] for line in out.splitlines())
 
 
-@pytest.mark.parametrize("argv", [["sim", "--layout", "lego_passing_loop", "--trains", "2", "--duration", "1"],
+@pytest.mark.parametrize("argv", [["sim", "--layout", "lego_branch", "--trains", "2", "--duration", "1"],
                                   ["compare", "--layout", "lego_branch"], ["fusion", "--layout", "lego_figure_eight"],
                                   ["campaign", "--runs", "2", "--layouts", "lego_branch"],
                                   ["setup", "--layout", "lego_branch", "--out", "OUT"]])

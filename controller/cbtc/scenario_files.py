@@ -11,9 +11,10 @@ import yaml
 
 from cbtc.authority.policy import MOVING_BLOCK, policy_names
 from cbtc.errors import CbtcError, ConfigError
-from cbtc.layout_files import load_layout, packaged_names, resolve_packaged
+from cbtc.layout_files import load_track, packaged_names, resolve_packaged
 from cbtc.protocol import wire
 from cbtc.railway.train_profile import TrainProfile
+from cbtc.scenario_network import check_network_apart, network_train
 from cbtc.sim import faults as fault_catalogue
 from cbtc.yaml_lines import LineMap, LineSeq, YamlKeyError, load_with_lines
 from cbtc.zone.config import ScenarioConfig, TrainSpec
@@ -139,17 +140,24 @@ def scenario_from_dict(data, source="<dict>") -> ScenarioConfig:
     layout_text = data["layout"]
     beside = os.path.join(os.path.dirname(os.path.abspath(source)), layout_text)
     try:
-        layout = load_layout(beside if os.path.isfile(beside) else layout_text)
+        layout = load_track(beside if os.path.isfile(beside) else layout_text)
     except CbtcError as exc:
         r.fail(data, "layout", "layout", str(exc))
+    network = getattr(layout, "is_network", False)
     seed = r.number(data, "seed", "seed", minimum=0, default=0, whole=True)
     duration_s = float(r.number(data, "duration_s", "duration_s", above=0.0, default=120.0))
     laps = None
     if "laps" in data:
         laps = r.number(data, "laps", "laps", minimum=1, whole=True)
+        if network:
+            r.fail(data, "laps", "laps", f"layout {layout.name} is a track network: its trains run plans, not laps; "
+                                         f"give duration_s")
         if not layout.closed:
             r.fail(data, "laps", "laps", f"layout {layout.name} is an open line: it has no laps; remove laps")
     policy = r.choice(data, "policy", "policy", POLICIES, MOVING_BLOCK)
+    if network and policy != MOVING_BLOCK:
+        r.fail(data, "policy", "policy", f"layout {layout.name} is a track network: it runs under {MOVING_BLOCK} "
+                                         f"for now")
     options = {}
     if "blocks" in data:
         if not policy_class(policy).uses_blocks:
@@ -211,6 +219,11 @@ def _trains(r, data, layout):
         if train_id in by_id:
             r.fail(item, "id", f"{where}.id", f"train {train_id} is listed twice; give each train its own id")
         profile = _profile(r, item, where)
+        dwell_s = r.dwell(item, "dwell_s", f"{where}.dwell_s", None)
+        if getattr(layout, "is_network", False):
+            specs.append(by_id.setdefault(train_id, network_train(r, item, where, layout, train_id, profile,
+                                                                    dwell_s)))
+            continue
         s0_m = _start(r, item, where, layout, by_id, profile)
         stops = item.get("stops", station_names)
         if not isinstance(stops, list) or not all(isinstance(s, str) for s in stops):
@@ -220,11 +233,13 @@ def _trains(r, data, layout):
                 near = difflib.get_close_matches(name, station_names, n=1)
                 hint = f"did you mean {near[0]!r}?" if near else f"stations of {layout.name}: {station_names}"
                 r.fail(item, "stops", f"{where}.stops", f"no station {name!r}; {hint}")
-        dwell_s = r.dwell(item, "dwell_s", f"{where}.dwell_s", None)
         spec = TrainSpec(train_id, s0_m, tuple(stops), profile, dwell_s)
         by_id[train_id] = spec
         specs.append(spec)
-    _check_apart(r, data, layout, specs)
+    if getattr(layout, "is_network", False):
+        check_network_apart(r, data, layout, specs)
+    else:
+        _check_apart(r, data, layout, specs)
     return specs
 
 

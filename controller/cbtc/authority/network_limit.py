@@ -28,11 +28,12 @@ def network_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
     if ahead.trains and ahead.trains[0][1] < best.distance_m:
         train, distance = ahead.trains[0]
         best = NetworkLimit(distance, f"the rear-most plausible tail of train {train}")
-    for switch, distance, leg in ahead.switches:
+    for switch, distance, leg in sorted(ahead.switches, key=lambda w: w[1]):   # nearest first (a loop comes round)
         detected = detected_legs.get(switch)
         if detected != leg:
             if distance < best.distance_m:
-                state = "moving or its detection lost" if detected is None else f"detected {detected}"
+                state = "not detected so (moving, detection lost, or out of correspondence with its command)" \
+                    if detected is None else f"detected {detected}"
                 best = NetworkLimit(distance, f"switch {switch}: the route needs {leg}, it is {state}")
             break
     return best

@@ -79,15 +79,16 @@ def checked_plan(args):
         return _scenario_plan(args)
     args.layouts = args.layouts or ",".join(campaign.LAYOUTS)
     args.trains = args.trains or "2-6"
-    classes = campaign.parse_classes(args.fault or campaign.CLASSES)
     layouts = tuple(name.strip() for name in args.layouts.split(",") if name.strip())
     if not layouts:
         raise ConfigError(f"--layouts {args.layouts!r}: give layout names, such as itb_square,lego_oval")
     sizes = fleet_sizes(args.trains)
     from cbtc.sim.runs import sim_config
     for layout in layouts:
-        for n in sizes:
-            sim_config(layout, n, 0, args.duration)       # the layout loads and the fleet fits on it
+        for n in sizes:                                   # the layout loads and the fleet fits on it
+            sim_config(layout, min(n, campaign.NETWORK_FLEET) if campaign.is_network(layout) else n, 0, args.duration)
+    classes = campaign.parse_classes(args.fault or [   # by default, the classes that run on some layout given
+        c for c in campaign.CLASSES if any(campaign.runs_on(c, name) for name in layouts)])
     specs = campaign.plan(args.runs, classes, layouts, sizes, args.duration, args.seed)
     for spec in specs:                                    # a train named in a class exists in every run
         spec.config()

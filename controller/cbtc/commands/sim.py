@@ -49,7 +49,7 @@ DEFAULTS = {"layout": "lego_oval", "trains": 3, "duration": 120.0, "seed": 0, "p
 
 
 def run(args):
-    from cbtc.layout_files import load_layout
+    from cbtc.layout_files import load_track
     from cbtc.sim.runs import scenario_config, sim_config
 
     config = with_scenario(args, DEFAULTS, fixed=("layout", "trains", "start_gap"),
@@ -59,7 +59,7 @@ def run(args):
         config = scenario_config(config, blocks=args.blocks, fault_texts=args.fault)
         title = f"scenario {config.name}: {len(config.trains)} trains on {config.layout.name}, seed {config.seed}"
         return run_scenario_and_report(config, title, args)
-    layout = load_layout(args.layout)
+    layout = load_track(args.layout)
     config = sim_config(layout, args.trains, args.seed, args.duration, args.policy, args.estimator, args.blocks,
                         args.fault, start_gap_m=args.start_gap)
     return run_scenario_and_report(config, f"{args.trains} trains on {layout.name}, seed {args.seed}", args)

@@ -28,8 +28,9 @@ NONE, COMBINED, OVERLAPPING, PACKED = "none", "combined", "overlapping", "packed
 CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED, OVERLAPPING, PACKED)
 OVERLAP_S = 2.0   # overlapping: each fault begins within this long after the first
 PACKED_GAP_M = (0.05, 0.3)   # packed_start: the gap from a tail to the next head at the start
-LAYOUTS = ("itb_square", "lego_oval")
+LAYOUTS = ("itb_square", "lego_oval", "lego_passing_loop", "lego_figure_eight")
 FLEET_SIZES = (2, 3, 4, 5, 6)
+NETWORK_FLEET = 4   # at most this many trains on a track network (they are put down on its longest section)
 
 
 
@@ -70,6 +71,9 @@ CAMPAIGN_RANGES = {
     "encoder_drift": {"duration_s": (20.0, 40.0), "factor": (0.9, 1.12)},
     "boot_moved": {"distance_m": LogSigned((0.05, 1.0))},
     "tag_moved": {"distance_m": LogSigned((0.005, 0.2))},
+    "switch_stall": {"duration_s": (2.0, 20.0)},
+    "switch_detection_lost": {"duration_s": (2.0, 20.0)},
+    "switch_wrong_leg": {"duration_s": (2.0, 20.0)},
     "unknown_board": {"distance_m": (0.3, 4.0)},
     "duplicate_board": {"distance_m": (0.3, 4.0)},
     "unseen_train": {"duration_s": (0.5, 5.0), "distance_m": (0.3, 4.0)},
@@ -132,6 +136,21 @@ def parse_classes(texts) -> list:
     return classes
 
 
+@functools.lru_cache(maxsize=None)
+def is_network(layout: str) -> bool:
+    from cbtc.layout_files import load_track
+    return bool(getattr(load_track(layout), "is_network", False))
+
+
+def runs_on(cls: str, layout: str) -> bool:
+    """Whether fault class `cls` runs on `layout`: the switch faults on track networks only; packed_start and the
+    faults that place a train, a car or a tag along one path on single paths only."""
+    name, network = cls.partition(":")[0], is_network(layout)
+    if name in faults.SWITCH_FAULTS:
+        return network
+    return not network or (name not in faults.PATH_ONLY and name != PACKED)
+
+
 def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int, scenario=None) -> list:
     """The RunSpecs of a campaign of `runs` runs (module docstring: which run is which); with `scenario` (its name or
     file, and its ScenarioConfig), every run is that scenario with its seed and a fault drawn for its trains."""
@@ -144,16 +163,25 @@ def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int,
             drawn = draw_faults(cls, seed + k, len(ids), duration_s, ids)
             specs.append(RunSpec(cls, config.layout.name, len(ids), seed + k, duration_s, drawn, scenario=name))
         return specs
+    own = {cls: [name for name in layouts if runs_on(cls, name)] for cls in classes}
+    lacking = [cls for cls, names in own.items() if not names]
+    if lacking:
+        raise ConfigError(f"fault classes {', '.join(lacking)} run on none of the layouts {', '.join(layouts)} (switch "
+                          f"faults need a track network, such as lego_passing_loop; packed_start and the faults that "
+                          f"place things along one path need a loop or a line): add one to --layouts")
     for k in range(runs):
         cls = classes[k % len(classes)]
-        combo = k // len(classes)
-        layout = layouts[combo % len(layouts)]
-        n = fleet_sizes[(combo // len(layouts)) % len(fleet_sizes)]
+        combo, names = k // len(classes), own[cls]
+        layout = names[combo % len(names)]
+        n = fleet_sizes[(combo // len(names)) % len(fleet_sizes)]
+        if is_network(layout):
+            n = min(n, NETWORK_FLEET)
         run_seed = seed + k
         if cls == PACKED:
             specs.append(packed_start(layout, n, run_seed, duration_s))
         else:
-            specs.append(RunSpec(cls, layout, n, run_seed, duration_s, draw_faults(cls, run_seed, n, duration_s)))
+            specs.append(RunSpec(cls, layout, n, run_seed, duration_s,
+                                 draw_faults(cls, run_seed, n, duration_s, network=is_network(layout))))
     return specs
 
 
@@ -171,18 +199,21 @@ def packed_start(layout: str, n_trains: int, seed: int, duration_s: float) -> Ru
     return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), FIXED_BLOCK, blocks, gap_m)
 
 
-def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids=None) -> tuple:
+def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids=None, network=False) -> tuple:
     """The fault texts of class `cls` (as given to --faults) for a run: drawn from `seed`, the same on every machine;
-    a fault's train is one of `train_ids` (default T1..Tn)."""
+    a fault's train is one of `train_ids` (default T1..Tn); `combined` and `overlapping` draw among the faults that run
+    on the layout (a track network: `network`)."""
     rng = random.Random(f"{cls}/{seed}")
     ids = list(train_ids or [f"T{i + 1}" for i in range(n_trains)])
+    shut_out = faults.PATH_ONLY if network else faults.SWITCH_FAULTS
+    pool = sorted(name for name in CAMPAIGN_RANGES if name not in shut_out)
     if cls == NONE:
         return ()
     if cls == COMBINED:
-        first, second = rng.sample(sorted(CAMPAIGN_RANGES), 2)
+        first, second = rng.sample(pool, 2)
         return (_draw(first, rng, ids, duration_s), _draw(second, rng, ids, duration_s))
     if cls == OVERLAPPING:
-        names = rng.sample(sorted(CAMPAIGN_RANGES), rng.choice((2, 3)))
+        names = rng.sample(pool, rng.choice((2, 3)))
         start_s = _draw_at_s(rng, duration_s)
         return tuple(_draw(name, rng, ids, duration_s, round(start_s + rng.uniform(0.0, OVERLAP_S), 1))
                      for name in names)

@@ -7,6 +7,7 @@ position says which of them a train passes; a buffer stop has an empty side. A r
 forwards or backwards, and flattens into one Path along which a train's coordinate runs.
 """
 
+from bisect import bisect_right
 from dataclasses import dataclass
 from math import hypot, pi
 
@@ -178,6 +179,36 @@ class Route:
                 length = self.graph.sections[name].length_m
                 return start + (offset_m if forward else length - offset_m)
         return None
+
+    def step_at(self, s_m):
+        """The index of the step route coordinate `s_m` lies on (clipped to the route; modulo its length if closed)."""
+        s = s_m % self.length_m if self.closed else min(max(s_m, 0.0), self.length_m)
+        return max(0, bisect_right(self.starts_m, s) - 1)
+
+    def span(self, tail_s_m, head_s_m):
+        """((section, lo_m, hi_m), ...) of the stretch from route coordinate `tail_s_m` forwards to `head_s_m`: on a
+        closed route taken round (the whole round at most), on an open one clipped to the route."""
+        extent = head_s_m - tail_s_m
+        if extent <= 0.0:
+            return ()
+        if self.closed:
+            if extent >= self.length_m:
+                return tuple((name, 0.0, self.graph.sections[name].length_m) for name, _f in self.steps)
+            lo = tail_s_m % self.length_m
+            pieces = [(lo, min(lo + extent, self.length_m))]
+            if lo + extent > self.length_m:
+                pieces.append((0.0, lo + extent - self.length_m))
+        else:
+            pieces = [(max(tail_s_m, 0.0), min(head_s_m, self.length_m))]
+        out = []
+        for a, b in pieces:
+            for (name, forward), start in zip(self.steps, self.starts_m):
+                length = self.graph.sections[name].length_m
+                x, y = max(a, start), min(b, start + length)
+                if x < y or (x == y and a == b == x):
+                    out.append((name, x - start, y - start) if forward else (name, start + length - y,
+                                                                              start + length - x))
+        return tuple(out)
 
     def path(self) -> Path:
         """The route as one Path from the first section's entry; closed when the route is a cycle."""

@@ -7,13 +7,20 @@ import zlib
 from dataclasses import replace
 
 from cbtc.errors import ConfigError
-from cbtc.sim.faults import Fault
+from cbtc.sim.faults import PATH_ONLY, SWITCH_FAULTS, Fault
 
 
 def inject(sim, faults) -> None:
     """Schedule every fault of `faults` (Fault values) on `sim`'s clock; ConfigError for a train it does not have."""
     trains = {t.train_id: t for t in sim.trains}
+    layout = sim.config.layout
     for fault in faults:
+        if sim.network and fault.name in PATH_ONLY:
+            raise ConfigError(f"fault {fault.name} places or measures things along a single path: not on the track "
+                              f"network {layout.name} yet; run it on a loop or a line, or pick another fault")
+        if not sim.network and fault.name in SWITCH_FAULTS:
+            raise ConfigError(f"fault {fault.name} needs a track network with switches; layout {layout.name} has "
+                              f"none: run it on lego_passing_loop or lego_figure_eight")
         train = None
         if "train" in fault.params:
             train = trains.get(fault.params["train"] or sim.trains[0].train_id)
@@ -303,6 +310,17 @@ def _tag_moved(sim, train, p):
     sim.scheduler.call_at(p["at_s"], move)
 
 
+def _switch_fault(name):
+    def schedule(sim, _train, p):
+        switch = p["switch"] or next(iter(sim.switches))
+        machine = sim.switches.get(switch)
+        if machine is None:
+            raise ConfigError(f"fault {name}: no switch {switch!r} on {sim.config.layout.name}; its switches: "
+                              f"{', '.join(sim.switches)}")
+        machine.fault, machine.fault_at_s, machine.fault_until_s = name, p["at_s"], p["at_s"] + p["duration_s"]
+    return schedule
+
+
 SCHEDULE = {"controller_restart": _controller_restart,
              "ips_bias": _ips_bias, "encoder_drift": _encoder_drift, "boot_moved": _boot_moved,
              "tag_moved": _tag_moved, "unknown_board": _unknown_board, "duplicate_board": _duplicate_board,
@@ -314,4 +332,4 @@ SCHEDULE = {"controller_restart": _controller_restart,
              "ips_outliers": _ips_outliers, "rfid_absent": _rfid_absent, "rfid_misses": _rfid_misses,
              "link_reorder": _link_reorder, "link_duplicate": _link_duplicate, "rfid_wrong_tag": _rfid_wrong_tag,
              "rollback": _rollback, "reverse_run": _reverse_run, "length_wrong": _length_wrong,
-             "car_dropped": _car_dropped}
+             "car_dropped": _car_dropped, **{name: _switch_fault(name) for name in SWITCH_FAULTS}}

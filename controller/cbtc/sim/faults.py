@@ -92,11 +92,23 @@ FAULTS = {
                      "train with no working board is put on the track, standing, this far ahead of the train's head "
                      "(as unknown_board): nothing of it reaches the new zone",
                      {"train": "", "at_s": 20.0, "duration_s": 3.0, "distance_m": 1.0}),
+    "switch_stall": ("on a track network, the switch's moves from at_s stall for duration_s (the blades between the "
+                     "legs, no leg detected), then complete; switch: its id (empty: the layout's first)",
+                     {"switch": "", "at_s": 20.0, "duration_s": 10.0}),
+    "switch_detection_lost": ("on a track network, the switch's detector reports no leg from at_s for duration_s "
+                              "(a cable off, a microswitch stuck open)",
+                              {"switch": "", "at_s": 20.0, "duration_s": 10.0}),
+    "switch_wrong_leg": ("on a track network, the switch's detector reports the other leg from at_s for duration_s "
+                         "(its two detectors swapped or misadjusted)",
+                         {"switch": "", "at_s": 20.0, "duration_s": 10.0}),
     "tag_moved": ("the first tag ahead of the train at at_s lies this far from where the layout (and its telegram) "
                   "says (negative: back; knocked or laid by hand; as far as its neighbours and the track's origin "
                   "leave room, less 1 cm), for the rest of the run",
                   {"train": "", "at_s": 20.0, "distance_m": 0.05}),
 }
+SWITCH_FAULTS = ("switch_stall", "switch_detection_lost", "switch_wrong_leg")   # on track networks only
+PATH_ONLY = ("length_wrong", "car_dropped", "boot_moved", "tag_moved", "unknown_board", "duplicate_board",
+             "unseen_train")   # they place a train, a car or a tag by distances along one path: not on networks yet
 _DIRECTIONS = ("up", "down", "both")
 _SIGNED = {("odometer_jump", "distance_m"), ("boot_moved", "distance_m"), ("unknown_board", "distance_m"),
            ("duplicate_board", "distance_m"), ("unseen_train", "distance_m"),

@@ -5,7 +5,7 @@ from dataclasses import replace
 
 from cbtc.authority.policy import FIXED_BLOCK, MOVING_BLOCK
 from cbtc.errors import ConfigError
-from cbtc.layout_files import load_layout
+from cbtc.layout_files import load_track
 from cbtc.sim import faults
 from cbtc.zone.config import queue_scenario
 from cbtc.zone.factory import policy_class
@@ -16,12 +16,20 @@ def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = 
     """The ScenarioConfig of `cbtc sim --layout LAYOUT --trains N ... --fault F...` (`layout`: a name, a file or a
     loaded Layout); ConfigError for any bad value, before anything runs."""
     if isinstance(layout, str):
-        layout = load_layout(layout)
+        layout = load_track(layout)
     _check_blocks(policy, blocks)
     options = {} if blocks is None else {"blocks": blocks}
     injected = tuple(faults.parse(text) for text in fault_texts)
-    config = queue_scenario(layout, trains, seed=seed, duration_s=duration_s, start_gap_m=start_gap_m,
-                            policy=policy, estimator=estimator, policy_options=options)
+    if getattr(layout, "is_network", False):
+        if policy != MOVING_BLOCK or start_gap_m is not None:
+            raise ConfigError(f"layout {layout.name} is a track network: it runs under --policy {MOVING_BLOCK} "
+                              "with its trains put down by the network's own rule (no --start-gap) for now")
+        from cbtc.zone.network_config import network_queue
+        config = network_queue(layout, trains, seed=seed, duration_s=duration_s, policy=policy,
+                               estimator=estimator)
+    else:
+        config = queue_scenario(layout, trains, seed=seed, duration_s=duration_s, start_gap_m=start_gap_m,
+                                policy=policy, estimator=estimator, policy_options=options)
     config.faults = injected
     return config
 

@@ -5,4 +5,5 @@ cdef class Simulation:
     cdef object __weakref__
     cdef public object config, scheduler, broker, zc_client, zc, policy
     cdef public object trains, strays, recorder, tail_beacons, _cycle, _keys, zone_restarts, _report_sinks
+    cdef public object network, switches
 

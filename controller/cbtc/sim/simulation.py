@@ -14,6 +14,7 @@ from cbtc.protocol import fast_wire, wire, wire_zc
 from cbtc.scheduler import VirtualScheduler
 from cbtc.sim import fault_effects, progress
 from cbtc.sim.recorder import Recorder
+from cbtc.sim.switch_machines import SwitchMachine
 from cbtc.sim.tail_beacons import TailBeacons
 from cbtc.sim.virtual_train import VirtualTrain
 from cbtc.zone.config import ScenarioConfig, train_key
@@ -52,16 +53,17 @@ class Simulation:
                                          will=(wire.topic_status(spec.train_id), b"offline", True),
                                          up=config.link, down=config.link)
             offset_ms = int(rng.integers(0, 10_000_000))
-            self.trains.append(VirtualTrain(spec.train_id, train_key(config.seed, spec.train_id), layout, spec.profile,
-                                            spec.s0_m, client, rng, offset_ms, obu_overrides=config.obu_overrides,
-                                            ranging=self._ranging(index)))
+            train = VirtualTrain(spec.train_id, train_key(config.seed, spec.train_id), spec.frame or layout,
+                                 spec.profile, spec.s0_m, client, rng, offset_ms, obu_overrides=config.obu_overrides,
+                                 ranging=self._ranging(index))
+            train.route = spec.route   # on a network: the itinerary it runs (its frame's Route)
+            self.trains.append(train)
         if config.declare_start:
             for spec in config.trains:   # from truth, as an operator would at the start of a run (declare_start)
-                self.zc.declare_position(spec.train_id, layout.wrap(spec.s0_m), DECLARED_TOL_M)
-        stuck = self.policy.stuck(layout, [(t.train_id, t.head_s, t.tail_s) for t in self.trains])
-        if stuck is not None:
-            raise ConfigError(stuck)
-        self.recorder = Recorder(self, keep_reports, keep_samples)
+                self.zc.declare_position(spec.train_id, (spec.frame or layout).wrap(spec.s0_m), DECLARED_TOL_M)
+        self.network = getattr(layout, "is_network", False)
+        self.switches = {}   # on a network: switch id -> its SwitchMachine, which the zone commands and reads
+        self.recorder = self._world(keep_reports, keep_samples)
         self._clear_track()
         self.zc.start()
         for train in self.trains:
@@ -78,6 +80,30 @@ class Simulation:
         if self.tail_beacons:
             self.scheduler.call_every(config.loop_s, self.tail_beacons.tick, start_s=0.0107)
         fault_effects.inject(self, config.faults)
+
+    def _world(self, keep_reports, keep_samples):
+        """The run's recorder; on a network, its switch machines first, wired to the zone and moving each loop."""
+        config = self.config
+        if self.network:
+            from cbtc.sim.network_recorder import NetworkRecorder
+            self.switches = {w: SwitchMachine(w) for w in config.layout.graph.switches}
+            self._wire_switches()
+            self.scheduler.call_every(config.loop_s, self._step_switches, start_s=0.0103)
+            return NetworkRecorder(self)
+        stuck = self.policy.stuck(config.layout, [(t.train_id, t.head_s, t.tail_s) for t in self.trains])
+        if stuck is not None:
+            raise ConfigError(stuck)
+        return Recorder(self, keep_reports, keep_samples)
+
+    def _wire_switches(self):
+        """The zone reads the machines' detection and commands their moves (a lineside board's part on a table)."""
+        machines = self.switches
+        self.zc.network.detection = lambda now_s: {w: m.detected(now_s) for w, m in machines.items()}
+        self.zc.network.on_move = lambda switch, leg, now_s: machines[switch].command(leg, now_s)
+
+    def _step_switches(self, now_s):
+        for machine in self.switches.values():
+            machine.step(now_s)
 
     def add_stray(self, train_id, key, s0_m, profile):
         """A board put on the track at `s0_m` standing, reporting as `train_id` with `key`, which the zone was not
@@ -114,6 +140,8 @@ class Simulation:
         for record in records:
             self.zc.import_train(record, now_s)
         self.policy = self.zc.policy
+        if self.network:
+            self._wire_switches()
         for sink in self._report_sinks:
             self.zc.reports.subscribe(sink)
         self._clear_track()
@@ -126,7 +154,7 @@ class Simulation:
         if self.config.clear_track != "truth":
             return
         layout = self.config.layout
-        if not self.strays:
+        if not self.strays or self.network:   # a network: its strays are obstacles placed nowhere (all held)
             self.zc.clear_track(None, by="the simulation, from its truth,")
             return
         occupied = SweptTrack(layout)   # the union of the strays' extents

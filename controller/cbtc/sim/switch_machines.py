@@ -7,11 +7,12 @@ interlocking commands it; the authority reads only what it detects; the truth ch
 """
 
 from dataclasses import dataclass
+from math import inf
 
 from cbtc.railway.track_graph import LEGS
+from cbtc.sim.faults import SWITCH_FAULTS  # noqa: F401  (the faults a machine has)
 
 MOVE_S = 1.0          # a servo throwing a LEGO switch: about a second end to end
-SWITCH_FAULTS = ("switch_stall", "switch_detection_lost", "switch_wrong_leg")
 
 
 @dataclass
@@ -21,11 +22,12 @@ class SwitchMachine:
     move_s: float = MOVE_S
     target: str = None           # the leg it is moving to
     done_at_s: float = None
-    fault: str = ""              # one of SWITCH_FAULTS, active from fault_at_s
+    fault: str = ""              # one of SWITCH_FAULTS, active from fault_at_s until fault_until_s
     fault_at_s: float = 0.0
+    fault_until_s: float = inf
 
     def _faulty(self, name, now_s):
-        return self.fault == name and now_s >= self.fault_at_s
+        return self.fault == name and self.fault_at_s <= now_s < self.fault_until_s
 
     def command(self, leg, now_s):
         """Move to `leg` (a move under way to another leg is redirected); nothing when already there and still."""

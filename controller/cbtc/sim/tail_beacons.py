@@ -10,7 +10,7 @@ from cbtc.sim.drivers import SimIps
 class TailBeacons:
     def __init__(self, sim):
         self.sim = sim
-        self._beacons = [(train, SimIps(train.profile, sim.config.layout,
+        self._beacons = [(train, SimIps(train.profile, train.layout,
                                         np.random.default_rng([sim.config.seed, index, 13])))
                          for index, train in enumerate(sim.trains) if train.profile.tail_beacon]
 

@@ -63,7 +63,7 @@ class CommandWriter:
             state.limit_s = None
         else:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
-            state.limit_s = self.layout.wrap(est.s_m + limit_mm / 1000.0)
+            state.limit_s = state.frame.wrap(est.s_m + limit_mm / 1000.0)
         # the command's fields after boot and seq, in the table's order (Command: sid, rseq, v_mmps, eoa_mm, ttl_ms,
         # acc, dec, stop_mm, rpt_ms, odo_mm_per_m), as a tuple: a zone builds one for every answer it makes
         rest = (self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),

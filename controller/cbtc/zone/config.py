@@ -19,6 +19,8 @@ class TrainSpec:
     stops: tuple = ()
     profile: TrainProfile = field(default_factory=TrainProfile)
     dwell_s: tuple = None            # (low, high) s at each stop; None: the scenario's
+    frame: object = None             # on a track network: the path Layout of its itinerary (s0_m is on it)
+    route: object = None             # ... and the itinerary's Route
 
 
 @dataclass

@@ -27,6 +27,7 @@ cdef class ZoneController:
     cdef public object event_driven, zone_id, _rng, session_id, trains
     cdef public object unknown_reports, invalid_reports, refusals, key_source, cycles, ranging_sigma_m
     cdef public object use_measured_gap, commands, reports, views, obstacles, watch, swept
+    cdef public object network
 
     @cython.locals(report=dict, previous=dict)
     cpdef _take_report(self, TrainState state, payload, recv_s)

@@ -22,17 +22,19 @@ from math import isfinite
 from cbtc.authority.rules import AuthorityParams, within_horizon
 from cbtc.authority.values import Situation
 from cbtc.errors import ConfigError
-from cbtc.protocol import fast_wire, wire, wire_zc
+from cbtc.protocol import wire, wire_zc
 from cbtc.protocol.records import Command
 from cbtc.zone import plausibility
 from cbtc.zone.commanding import CommandWriter
+from cbtc.zone.decoding import decoded_report
 from cbtc.zone.estimators import Estimators
 from cbtc.zone.fast_reports import FastReports, fast_report_slots
 from cbtc.zone.handover import TrainRecord, export_train, import_train
 from cbtc.zone.indexes import ReportAges, TrainOrder
+from cbtc.zone.network_routes import network_routes
 from cbtc.zone.obstacle_watch import ObstacleWatch
 from cbtc.zone.refusals import UNKNOWN, RefusalLog, short
-from cbtc.zone.situations import Departures, hold_reason, track_spans
+from cbtc.zone.situations import Departures, hold_reason, own_hold, track_spans
 from cbtc.zone.stations import StationStops
 from cbtc.zone.supervision import Subscribers, ZoneView, train_view
 from cbtc.zone.swept import SweptTrack
@@ -49,7 +51,7 @@ class ZoneController:
                  event_driven: bool = True, report_budget_hz: float = 400.0):
         if not trains:
             raise ValueError("zone controller: no trains configured")
-        self.order = TrainOrder(layout.closed)   # the located trains in position order
+        self.order = TrainOrder(getattr(layout, "closed", False))   # the located trains in position order
         self.departures = Departures()   # the trains departing, for each train's Situation
         self.layout = layout
         self.client = client
@@ -61,7 +63,7 @@ class ZoneController:
         self.zone_id = zone_id
         self._rng = random.Random(seed)
         self.session_id = self._rng.randrange(1, 2 ** 31 - 1)
-        self.stops = StationStops(layout, self._rng)
+        self.stops = StationStops(self._rng)
         if estimator_factory is None:
             from cbtc.estimation.ukf_estimator import UkfEstimator as estimator_factory
         self.refusals = RefusalLog(log)
@@ -76,7 +78,9 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.swept = SweptTrack(layout)   # the track vouched for; the rest is occupied (cbtc.zone.swept)
-        self.watch = ObstacleWatch(layout, [st.setup.profile for st in self.trains.values()], self.params,
+        self.network = network_routes(layout, self.trains, self.params)   # a track network's interlocking; else None
+        self.watch = ObstacleWatch(None if self.network else layout,
+                                   [st.setup.profile for st in self.trains.values()], self.params,
                                    self.refusals)   # what stands on the track and is no train of the zone
         self.obstacles = self.watch.obstacles   # name -> Obstacle (the watch's), read at every authority
         self.key_source = "its keys"   # where the zone's keys come from, named when a board's differ (a file)
@@ -194,7 +198,7 @@ class ZoneController:
             state.still_since_s = state.report_t_s
         state.took_report()
         self.order.moved.add(state)
-        if not self.swept.complete and state.estimator.localized:
+        if not self.swept.complete and state.estimator.localized and self.network is None:
             self.swept.sweep(state, self.params.k_sigma)
         if self.reports:
             self.reports.publish(state.train_id, report, recv_s)
@@ -205,21 +209,10 @@ class ZoneController:
 
     def _decoded(self, state, payload, recv_s):
         """The report of `payload`, authenticated and checked; None, counted and said, when it is not one."""
-        try:
-            report = fast_wire.decode_report(state.setup.key, wire.topic_report(state.train_id), payload)
-        except wire.AuthError:
+        report = decoded_report(state, payload, self.key_source, lambda klass, reason, advice: self._refuse(
+            state, klass, reason, recv_s, advice))
+        if report is None:
             self.invalid_reports += 1
-            self._refuse(state, "wrong key", "its reports fail authentication", recv_s,
-                         advice=f"the zone's key is from {self.key_source}: flash the board with it (cbtc flash "
-                                f"--keys FILE) or give the zone the board's")
-            return None
-        except wire.WireError as exc:
-            self.invalid_reports += 1
-            other = " names version " in exc.reason   # a board of another version (the key matched): flash it
-            advice = f"flash the board with this version's firmware (cbtc flash), which speaks version {wire.VERSION}"
-            self._refuse(state, "other version" if other else "invalid report", exc.reason, recv_s,
-                         advice=advice if other else "")
-            return None
         return report
 
     def located(self):
@@ -250,11 +243,13 @@ class ZoneController:
         self.cycles += 1
         located = self.located()
         all_located = self._all_located(located)
-        leader_of = self.order.leader_of
-        for i, state in enumerate(located):
+        if self.network is not None:
+            self.network.refresh(located, now_s)
+        for i, state in enumerate(located):   # each behind the train ahead (on a network: ahead on its route)
             if self.event_driven and state.answered_s is not None and now_s - state.answered_s < self.cycle_s:
                 continue
-            self._update(state, leader_of(located, i), all_located, now_s)
+            self._update(state, self.order.leader_of(located, i) if self.network is None else
+                         self.network.leader(state, located), all_located, now_s)
 
     def _update(self, state, leader, all_located, now_s):
         """Command `state`'s train; an exception makes that train be located afresh, and the others go on."""
@@ -266,13 +261,16 @@ class ZoneController:
     def _authorise(self, state, leader, all_located, now_s):
         stop_m = None
         blind = self.watch.nowhere(state, self.now_fn()) if self.obstacles else None
-        braked = None if state.report is None else "reverse" if "reverse" in state.report["flt"] else \
-            "split" if "split" in state.report["flt"] else None   # the board brakes it for good
-        if all_located and not state.boots.twins and blind is None and braked is None:
+        why = own_hold(state, blind, self.network is not None and not self.swept.complete)
+        if why is None and not all_located:
+            why = hold_reason(self.trains, self._unanswered)
+        if why is None:
             sit = self._situation(state, leader, now_s)
             sit = self.policy.signal(sit)   # fixed block: the wayside sends its speed code through the rails first
             auth = self.watch.clear_of(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
-            if not self.swept.complete:
+            if self.network is not None:
+                auth = self.network.clear_of(state, auth, now_s)
+            elif not self.swept.complete:
                 auth = self.swept.clear_of(state, auth, self.params.k_sigma, self.params.margin_m)
             self._took(state, auth)
             safe_m, v_cap_mps, acc_mps2, dec_mps2 = auth.distance_m, auth.v_cap_mps, auth.acc_mps2, auth.dec_mps2
@@ -289,11 +287,7 @@ class ZoneController:
             safe_m = None
             v_cap_mps = 0.0
             acc_mps2 = dec_mps2 = state.setup.profile.beta_s_mps2
-            state.limited_by = f"held: two boards report as {state.train_id}" if state.boots.twins \
-                else f"held: {blind}, position unknown" if blind is not None \
-                else "held: it ran backwards when driven (motor wired reversed?): fix it, then reboot the board" \
-                if braked == "reverse" else "held: its train line opened (a car came off?): recouple, then reboot" \
-                if braked == "split" else hold_reason(self.trains, self._unanswered)
+            state.limited_by = why
         self._command(state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s)
         state.answered_s = now_s
 
@@ -301,9 +295,10 @@ class ZoneController:
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
         spans = track_spans(self.policy, self.trains, self.layout, self.params.k_sigma) if self.policy.needs_spans \
             else ()
-        return Situation(self.layout, now_s, self.cycle_s, state.picture(),
-                         None if leader is None else leader.picture(), state.rng_gap, self.ranging_sigma_m,
-                         self.use_measured_gap, self.departures.of_others(state), spans)
+        ahead = None if leader is None else leader.picture() if self.network is None else \
+            self.network.picture_for(leader, state)   # on a network, in `state`'s frame
+        return Situation(state.frame, now_s, self.cycle_s, state.picture(), ahead, state.rng_gap,
+                         self.ranging_sigma_m, self.use_measured_gap, self.departures.of_others(state), spans)
 
     def _took(self, state, auth):
         """Keep what `state`'s new authority rests on, and raise the "picture disagrees" alarm when it does."""
@@ -324,10 +319,15 @@ class ZoneController:
         i = self.order.index_of(state)
         if i is None:
             return
-        all_located = self._all_located(located)
-        self._update(state, self.order.leader_of(located, i), all_located, now_s)
-        if all_located and len(located) > 1 and (i > 0 or self.layout.closed):
-            self._update(located[i - 1], state, True, now_s)
+        all_located, net = self._all_located(located), self.network
+        if net is not None:
+            net.refresh(located, now_s)
+        self._update(state, self.order.leader_of(located, i) if net is None else net.leader(state, located),
+                     all_located, now_s)
+        behind = () if not all_located else net.followers(state, located) if net is not None else \
+            (located[i - 1],) if len(located) > 1 and (i > 0 or self.layout.closed) else ()
+        for other in behind:
+            self._update(other, state, True, now_s)
 
     def _command(self, state, safe_m, stop_m, v_cap_mps, acc_mps2, dec_mps2, now_s):
         """Publish the command for the end of authority `safe_m` metres ahead (None: none granted: stop) and the
@@ -397,4 +397,4 @@ class ZoneController:
         start its estimate again from nothing."""
         state = self.state_of(train_id)
         state.setup.profile = profile
-        state.relocate(type(state.estimator)(self.layout, profile))
+        state.relocate(type(state.estimator)(state.frame, profile))

@@ -22,7 +22,7 @@ class Estimators:
 
     def fresh(self, state):
         """A new estimator for `state`'s train, knowing nothing."""
-        return self.factory(self.layout, state.setup.profile)
+        return self.factory(state.frame, state.setup.profile)
 
     def feed(self, state, report, previous, payload, recv_s):
         """Hand an accepted report to the train's estimator, unless its encoder failed or its odometer jumped (then
@@ -76,7 +76,7 @@ class Estimators:
                     if est.ahead_m or est.behind_m:   # its sensors disagreed: either may be the one that is wrong
                         state.doubt_span = (est.s_m - est.behind_m - widen_m, est.s_m + est.ahead_m + widen_m)
                 else:   # still unconfirmed: the span kept, and where it was placed since (not widened again)
-                    behind_m, ahead_m = span_offsets_m(self.layout, state.doubt_span, est.s_m)
+                    behind_m, ahead_m = span_offsets_m(state.frame, state.doubt_span, est.s_m)
                     state.doubt_span = (est.s_m + min(behind_m, -est.behind_m, -widen_m),
                                         est.s_m + max(ahead_m, est.ahead_m, widen_m))
         state.relocate(self.fresh(state))

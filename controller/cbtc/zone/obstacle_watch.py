@@ -29,7 +29,9 @@ class ObstacleWatch:
         self.refusals = refusals
         self.obstacles = {}        # name -> Obstacle
         self.parted = set()        # trains whose train line opened: their car's place is an obstacle
-        self._balises = BaliseReader(layout)   # where an obstacle's tag reads put it
+        # where an obstacle's tag reads put it; on a track network (layout None) an obstacle is placed nowhere, so
+        # while one is known every train is held
+        self._balises = None if layout is None else BaliseReader(layout)
         self._stranger_length_m = max(p.length_m for p in profiles)   # an unknown train is as long as the longest,
         self._stranger_v_mps = 1.5 * max(p.v_noload_mps for p in profiles)   # and no faster than half again theirs
 
@@ -52,6 +54,8 @@ class ObstacleWatch:
     def _sight(self, obstacle, report, recv_s):
         """Where `report` puts `obstacle`'s head: its IPS fix, its balise reads."""
         obstacle.hear(recv_s)
+        if self.layout is None:
+            return
         fix = report["ips"]
         if fix is not None:
             x_m, y_m = ips_to_track(fix[1] / 1000.0, fix[2] / 1000.0, self.layout.ips)
@@ -133,7 +137,8 @@ class ObstacleWatch:
         low_m = rear_m if just_now else rear_m - length_m
         name = f"a car come off {state.train_id}"
         obstacle = self.obstacles[name] = Obstacle(name, 0.0, 0.0)
-        obstacle.see(recv_s, low_m, rear_m)
+        if self.layout is not None:
+            obstacle.see(recv_s, low_m, rear_m)
         self.parted.add(state.train_id)
         log.error("train %s: its train line opened (a car came off?): its board brakes it for good, and the place of "
                   "its tail stays occupied until this zone restarts; recouple the car, then reboot the board",

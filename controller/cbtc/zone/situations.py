@@ -44,9 +44,28 @@ def track_spans(policy, trains, layout, k_sigma):
             continue
         est = st.newest_estimate()
         widen = k_sigma * est.sigma_s_m
-        spans.append((st.train_id, layout.wrap(est.s_m + widen + est.ahead_m),
-                      layout.wrap(est.s_m - st.setup.profile.length_m - widen - st.picture().behind_m)))
+        spans.append((st.train_id, st.frame.wrap(est.s_m + widen + est.ahead_m),
+                      st.frame.wrap(est.s_m - st.setup.profile.length_m - widen - st.picture().behind_m)))
     return tuple(spans)
+
+
+def own_hold(state, blind, unswept):
+    """Why `state`'s train gets no authority whatever the other trains do, or None: two boards report under its id,
+    an obstacle is seen nowhere (`blind`: its name), its board brakes it for good (motor wired reversed, train line
+    open), or the network's track is not cleared (`unswept`)."""
+    if state.boots.twins:
+        return f"held: two boards report as {state.train_id}"
+    if blind is not None:
+        return f"held: {blind}, position unknown"
+    faults = () if state.report is None else state.report["flt"]
+    if "reverse" in faults:
+        return "held: it ran backwards when driven (motor wired reversed?): fix it, then reboot the board"
+    if "split" in faults:
+        return "held: its train line opened (a car came off?): recouple, then reboot"
+    if unswept:
+        return "held: the network's track is not cleared (cbtc zone --clear-track all once only the zone's trains " \
+               "stand on it)"
+    return None
 
 
 def hold_reason(trains, unanswered):

@@ -6,6 +6,6 @@ from cbtc.zone.train_state cimport TrainState
 
 cdef class StationStops:
     cdef object __weakref__
-    cdef public object layout, rng
+    cdef public object rng
 
     cpdef stop_m(self, TrainState state, now_s)

@@ -16,8 +16,7 @@ STANDING_MMPS = 30   # slower than this, braked or not counting: standing, for t
 
 
 class StationStops:
-    def __init__(self, layout, rng):
-        self.layout = layout
+    def __init__(self, rng):
         self.rng = rng   # draws each dwell's length (the zone's, seeded)
 
     def stop_m(self, state, now_s):
@@ -28,11 +27,12 @@ class StationStops:
         est = state.newest_estimate()
         first = state.next_stop is None
         if first:
-            state.next_stop = self.next_station(est.s_m, stops, at_station_ok=True)
+            state.next_stop = self.next_station(state.frame, est.s_m, stops, at_station_ok=True)
         if state.next_stop == NO_MORE_STOPS:
             return None
-        station = self.layout.station(state.next_stop)
-        to_stop_m = self._signed_ahead(est.s_m, station.s_m)
+        layout = state.frame
+        station = layout.station(state.next_stop)
+        to_stop_m = self._signed_ahead(layout, est.s_m, station.s_m)
         if first and to_stop_m < -station.window_m:
             state.leaving = station.name   # it starts just past the station: no stop there this time round
         # standing: no speed; or slower than the board's creep speed and braked (no drive: it stops within a loop)
@@ -46,7 +46,7 @@ class StationStops:
                 state.dwell_until_s = None
                 state.dwells += 1
                 state.leaving = station.name
-                state.next_stop = self.next_station(station.s_m + 0.01, stops)
+                state.next_stop = self.next_station(layout, station.s_m + 0.01, stops)
                 return None
             return 0.0   # dwelling: held where it stands (the estimate moving by a mm must not start it again)
         if state.leaving is not None:
@@ -65,27 +65,28 @@ class StationStops:
             # passed the stop point beyond its window: count it and move on rather than reverse
             state.stop_overruns += 1
             log.warning("train %s overran station %s by %.3f m", state.train_id, station.name, -to_stop_m)
-            state.next_stop = self.next_station(station.s_m + 0.01, stops)
+            state.next_stop = self.next_station(layout, station.s_m + 0.01, stops)
             state.leaving = station.name   # counted once: not again until the train has left it behind
             return None
         return to_stop_m
 
-    def _signed_ahead(self, from_s, to_s):
-        """Forward distance from `from_s` to `to_s`; on a loop, a point up to 1 m behind is negative."""
-        ahead = self.layout.ahead_m(from_s, to_s)
-        if self.layout.closed and ahead > self.layout.length_m - 1.0:
-            ahead -= self.layout.length_m
+    @staticmethod
+    def _signed_ahead(layout, from_s, to_s):
+        """Forward distance from `from_s` to `to_s` on `layout`; on a loop, a point up to 1 m behind is negative."""
+        ahead = layout.ahead_m(from_s, to_s)
+        if layout.closed and ahead > layout.length_m - 1.0:
+            ahead -= layout.length_m
         return ahead
 
-    def next_station(self, s_m, stops, at_station_ok=False):
-        """The first station in `stops` ahead of `s_m` along the track; with `at_station_ok`, a station whose stop
-        window holds `s_m` (a train that starts at a platform dwells there first); NO_MORE_STOPS on a line past its
-        last stop."""
+    def next_station(self, layout, s_m, stops, at_station_ok=False):
+        """The first station in `stops` ahead of `s_m` along the track of `layout` (the train's frame); with
+        `at_station_ok`, a station whose stop window holds `s_m` (a train that starts at a platform dwells there
+        first); NO_MORE_STOPS on a line past its last stop."""
         def distance(name):
-            station = self.layout.station(name)
-            if at_station_ok and abs(self._signed_ahead(s_m, station.s_m)) <= station.window_m:
+            station = layout.station(name)
+            if at_station_ok and abs(self._signed_ahead(layout, s_m, station.s_m)) <= station.window_m:
                 return 0.0
-            return self.layout.ahead_m(s_m, station.s_m)
+            return layout.ahead_m(s_m, station.s_m)
         ahead = [name for name in stops if distance(name) >= 0.0]
         return min(ahead, key=distance) if ahead else NO_MORE_STOPS
 

@@ -151,7 +151,7 @@ def take_tail_fix(trains, layout, refusals, train_id, t_s, x_mm, y_mm):
         refusals.note(UNKNOWN, "tail fix", f"a tail beacon fix for train {train_id!r}, not in this zone", t_s)
         return
     try:
-        see_tail_fix(state, layout, refusals, t_s, x_mm, y_mm)
+        see_tail_fix(state, state.frame, refusals, t_s, x_mm, y_mm)
     except Exception as exc:
         state.tail = None
         refusals.note(train_id, "tail fix", f"checking its tail failed: {exc!r}", t_s)

@@ -20,6 +20,8 @@ class TrainSetup:
     profile: TrainProfile = field(default_factory=TrainProfile)
     stops: tuple = ()                   # station names this train stops at
     dwell_s: tuple = (1.0, 3.0)         # dwell time drawn uniformly from this range at each stop
+    frame: object = None                # on a track network, the path Layout of its itinerary the zone sees it on
+    itinerary: object = None            # ... and that itinerary's Route (None on a single path: the layout's)
 
 
 class TrainState:
@@ -29,6 +31,7 @@ class TrainState:
         self.setup = setup
         self.train_id = setup.train_id
         self.estimator = estimator
+        self.frame = None            # the path Layout the zone sees it on (its itinerary's on a network)
         self.rank = rank             # its place in the zone's list of trains: ties in position go by it
         self.on_change = on_change   # called with this state when its position may have changed
         self.clock = BoardClock()
@@ -147,12 +150,14 @@ def train_states(setups, layout, params, estimator_factory, on_change) -> dict:
         wire.check_train_id(setup.train_id)
         if setup.train_id in trains:
             raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
+        frame = setup.frame or layout   # the path the zone sees this train on
         for name in setup.stops:
-            layout.station(name)  # raises LayoutError naming the known stations
-        state = TrainState(setup, estimator_factory(layout, setup.profile), rank=len(trains),
+            frame.station(name)  # raises LayoutError naming the known stations
+        state = TrainState(setup, estimator_factory(frame, setup.profile), rank=len(trains),
                            on_change=on_change)
+        state.frame = frame
         state.reach_m = following_reach_m(setup.profile)
         state.horizon_m = horizon_m(setup.profile, params)
-        state.track_m = layout.length_m
+        state.track_m = frame.length_m
         trains[setup.train_id] = state
     return trains

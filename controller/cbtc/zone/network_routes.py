@@ -1,0 +1,243 @@
+"""The zone's routes on a track network: the interlocking it keeps, the routes it sets ahead of each train along its
+itinerary, and where each train's authority ends on the network.
+
+Each train runs an itinerary (cbtc.railway.itinerary) and the zone sees it in that frame (a path Layout of the
+itinerary's route, cbtc.railway.network_layout.route_layout). Each cycle the zone reads every located train's span on
+the network (its estimate widened by k sigma, its sensors' disagreement and, ahead, the way it can have run since its
+data: line speed for the data's age and a cycle, never past the end of the authority the zone last sent it, which its
+board enforces), releases the routes behind each train, and asks the interlocking for
+the next section of each train's itinerary while the end of what it holds lies within the train's horizon. A
+train's authority then ends at the first of: the end of what the interlocking holds for it, and the network limit
+(cbtc.authority.network_limit: another train's tail on the route or fouling a switch or crossing of it, a switch not
+detected in the route's position). The train ahead on the route, translated into the follower's frame, is the leader
+the policy follows (Takagi following and departure control as on a loop).
+"""
+
+import logging
+from math import inf
+
+from cbtc.authority.network_limit import NetworkLimit, network_limit
+from cbtc.authority.values import TrainPicture
+from cbtc.railway.ahead import look_ahead
+from cbtc.railway.geometry import forward_m
+from cbtc.railway.interlocking import Interlocking
+
+log = logging.getLogger("cbtc.zone")
+DEPART_S = 2.0   # a dwelling train's route is set this long before its dwell ends: a switch moves in about a second
+
+
+class NetworkRoutes:
+    def __init__(self, network, frames, k_sigma, margin_m):
+        """`frames`: train id -> the Route of its itinerary (the zone's frame of that train)."""
+        self.network = network
+        self.frames = dict(frames)
+        self.k_sigma = k_sigma
+        self.margin_m = margin_m
+        self.interlocking = Interlocking(network.graph)
+        # a switch lies where the zone has not yet commanded it: its first route commands it, whatever it is detected
+        self.interlocking.switch_leg = {w: None for w in network.graph.switches}
+        self.held = {t: {} for t in self.frames}      # train -> {route id: the itinerary step it holds}
+        self.refused = {t: "" for t in self.frames}   # train -> why its next section was refused ("" when it was not)
+        self._route_ids = 0
+        self.detection = lambda now_s: {}   # now_s -> {switch: detected leg, None while moving or lost}: the shell's
+        #                                     lineside (a simulation's switch machines)
+        self.on_move = None                 # (switch, leg, now_s): the shell throws a switch the interlocking moved
+        self.spans = {}          # train -> its widened span on the network, at the newest refresh
+        self._rears = {}         # train -> its span from the rear-most tail to the estimated head (what releases)
+        self.heads = {}          # train -> (frame coordinate of its front-most plausible head, section, offset_m)
+
+    # --- each cycle -------------------------------------------------------------------------------------------------
+
+    def refresh(self, states, now_s):
+        """Read every located train's span, release what lies behind each, and set each train's next sections."""
+        self.spans, self.heads, self._rears = {}, {}, {}
+        for st in states:
+            span = self._span(st, now_s)
+            if span is not None:
+                self.spans[st.train_id] = span
+        # a route is released behind the rear-most tail; its head side counts only where the estimate itself is, so
+        # a span whose widening reaches into a route ahead and draws back never releases that route as run off
+        for route_id, _section in self.interlocking.release_behind(self._rears):
+            train = route_id.split("/", 1)[0]
+            self.held[train].pop(route_id, None)
+        self.interlocking.advance(self.spans, now_s)
+        for st in states:
+            if st.train_id in self.spans:
+                for switch, leg in self._request(st, now_s):
+                    log.info("switch %s: moving to %s for train %s", switch, leg, st.train_id)
+                    if self.on_move is not None:
+                        self.on_move(switch, leg, now_s)
+
+    def _span(self, st, now_s):
+        if st.report is None or not st.estimator.localized:
+            return None
+        est = st.newest_estimate()
+        pic = st.picture()
+        widen = self.k_sigma * est.sigma_s_m
+        age_s = max(0.0, now_s - st.report_t_s)
+        run_m = st.setup.profile.v_max_mps * (age_s + 0.1) + self.margin_m
+        head = est.s_m + est.ahead_m + widen
+        frame = self.frames[st.train_id]
+        front = head + run_m
+        if st.limit_s is not None:   # nor beyond the end of the authority the zone last sent it (the board's bound)
+            to_limit_m = forward_m(est.s_m, st.limit_s, frame.length_m) if frame.closed else st.limit_s - est.s_m
+            if frame.closed and to_limit_m > frame.length_m - 1.0:
+                to_limit_m = 0.0     # just behind: it holds no authority ahead
+            front = min(front, max(head, est.s_m + max(0.0, to_limit_m) + widen))
+        name, offset = frame.locate(head)
+        self.heads[st.train_id] = (head, name, offset)
+        tail = est.s_m - st.setup.profile.length_m - pic.behind_m - widen
+        self._rears[st.train_id] = frame.span(tail, est.s_m)
+        return frame.span(tail, front)
+
+    def _chain(self, train):
+        """(the step the train's front-most head is on, how many steps from it on its routes hold in a row)."""
+        frame = self.frames[train]
+        held = set(self.held[train].values())
+        here = frame.step_at(self.heads[train][0])
+        n, count = len(frame.steps), 0
+        while count < n and (here + count if not frame.closed else (here + count) % n) in held:
+            count += 1
+        return here, count
+
+    def _need_m(self, st, now_s):
+        """How far ahead of its head `st`'s train needs track held: its horizon; only to its next stop while it is
+        bound to stop there or dwells, until DEPART_S before its dwell ends (a route set early for a train that
+        stands holds the switches other trains need: the overtaken train would hold its exit while it dwells)."""
+        need_m = st.horizon_m + 0.3
+        frame = st.frame
+        name = st.next_stop
+        if not name or name == st.leaving or name not in {s.name for s in frame.stations}:
+            return need_m
+        if st.dwell_until_s is not None and st.dwell_until_s - now_s <= DEPART_S:
+            return need_m
+        est = st.newest_estimate()
+        to_stop_m = forward_m(est.s_m, frame.station(name).s_m, frame.length_m if frame.closed else None)
+        if frame.closed and to_stop_m > frame.length_m - 1.0:
+            to_stop_m = 0.0          # at its stop, a little past the mark
+        return min(need_m, max(0.0, to_stop_m) + 0.05)
+
+    def _request(self, st, now_s):
+        """Ask for the itinerary's next sections while what the train holds ends within its horizon (first, the
+        sections its span stands on), never for one beyond another train on the way to it (that train goes first:
+        a route taken over its head could hold the track it needs); the switch moves the routes set need."""
+        train, frame = st.train_id, self.frames[st.train_id]
+        n, moves = len(frame.steps), []
+        if not self.held[train]:
+            touched = {s for s, _lo, _hi in self.spans[train]}
+            for i, (name, _fwd) in enumerate(frame.steps):
+                if name in touched and not self._set(train, i, moves):
+                    return moves
+        head_s = self.heads[train][0]
+        ahead = look_ahead(frame, head_s, self.spans, train)
+        first_m = ahead.trains[0][1] if ahead.trains else inf   # to the nearest other train on the way
+        need_m = self._need_m(st, now_s)
+        while self._held_end_m(st) < need_m:
+            here, count = self._chain(train)
+            if count >= n or (not frame.closed and here + count >= n):
+                break
+            step = (here + count) % n
+            if count and forward_m(head_s, frame.starts_m[step], frame.length_m if frame.closed else None) > first_m:
+                break
+            if not self._set(train, step, moves):
+                break
+        return moves
+
+    def _set(self, train, i, moves):
+        """Ask the interlocking for step `i` of `train`'s itinerary; True when set (its switch moves added to
+        `moves`)."""
+        route_id = f"{train}/{self._route_ids + 1}"
+        outcome = self.interlocking.set_route(route_id, train, (self.frames[train].steps[i],), self.spans)
+        if not outcome.ok:
+            self.refused[train] = outcome.reason
+            return False
+        self._route_ids += 1
+        self.refused[train] = ""
+        moves.extend(outcome.moves)
+        self.held[train][route_id] = i
+        return True
+
+    def _held_end_m(self, st):
+        """Distance from the train's front-most plausible head to the end of the sections held for it in a row,
+        along its itinerary: 0 when its head is on none of them."""
+        train, frame = st.train_id, self.frames[st.train_id]
+        if not self.held[train]:
+            return 0.0
+        here, count = self._chain(train)
+        if count == 0:
+            return 0.0
+        if count >= len(frame.steps):
+            return frame.length_m
+        head_s = self.heads[train][0]
+        into = (head_s % frame.length_m if frame.closed else head_s) - frame.starts_m[here]
+        ahead = sum(self.network.graph.sections[frame.steps[(here + k) % len(frame.steps)][0]].length_m
+                    for k in range(count))
+        return max(0.0, ahead - into)
+
+    # --- per train --------------------------------------------------------------------------------------------------
+
+    def clear_of(self, st, auth, now_s):
+        """`auth` cut to where `st`'s authority ends on the network, its margin off."""
+        commanded = self.interlocking.switch_leg   # a detection is believed only where it shows what was commanded
+        detected = {w: leg if leg == commanded.get(w) else None for w, leg in self.detection(now_s).items()}
+        limit = self.limit(st, detected)
+        if limit.distance_m - self.margin_m < auth.distance_m:
+            return auth.cut_to(max(0.0, limit.distance_m - self.margin_m), limit.reason)
+        return auth
+
+    def limit(self, st, detected_legs) -> NetworkLimit:
+        """Where `st`'s authority ends on the network, from its front-most plausible head."""
+        train = st.train_id
+        if train not in self.heads:
+            return NetworkLimit(0.0, "not located on the network")
+        head_s = self.heads[train][0]
+        frame = self.frames[train]
+        held_m = self._held_end_m(st)
+        why = self.refused[train]
+        best = NetworkLimit(held_m, f"the end of the route it holds ({why})" if why else
+                            "the end of the route the interlocking holds for it")
+        net = network_limit(frame, head_s, train, self.spans, detected_legs)
+        return net if net.distance_m < best.distance_m else best
+
+    def leader(self, st, states):
+        """The train ahead of `st` on its itinerary whose head lies on it (the one its policy follows), or None."""
+        frame = self.frames[st.train_id]
+        if st.train_id not in self.heads:
+            return None
+        head_s = self.heads[st.train_id][0]
+        best, best_d = None, None
+        for other in states:
+            if other is st or other.train_id not in self.heads:
+                continue
+            _s, name, offset = self.heads[other.train_id]
+            s = frame.s_of(name, offset)
+            if s is None or dict(frame.steps)[name] != dict(self.frames[other.train_id].steps)[name]:
+                continue
+            d = forward_m(head_s, s, frame.length_m if frame.closed else None)
+            if not frame.closed and s < head_s:
+                continue
+            if best_d is None or d < best_d:
+                best, best_d = other, d
+        return best
+
+    def picture_for(self, leader, follower):
+        """`leader`'s picture moved into `follower`'s frame: its head where the follower's itinerary has it."""
+        pic = leader.picture()
+        frame = self.frames[follower.train_id]
+        name, offset = self.frames[leader.train_id].locate(pic.s_m)
+        s = frame.s_of(name, offset)
+        return pic if s is None else TrainPicture(pic.train_id, s, pic.sigma_s_m, pic.v_mps, pic.data_t_s,
+                                                  pic.profile, pic.ahead_m, pic.behind_m)
+
+    def followers(self, st, states):
+        """The trains whose leader is `st`."""
+        return [other for other in states if other is not st and self.leader(other, states) is st]
+
+
+def network_routes(layout, trains, params):
+    """The NetworkRoutes of a track network's zone (`trains`: id -> TrainState, each setup with its itinerary), or None
+    on a single path."""
+    if not getattr(layout, "is_network", False):
+        return None
+    return NetworkRoutes(layout, {st.train_id: st.setup.itinerary for st in trains.values()}, params.k_sigma,
+                         params.margin_m)

@@ -1,0 +1,105 @@
+"""The zone and the simulator on a track network: virtual trains running the board's own loop over their
+itineraries, the zone's interlocking setting routes ahead of them and releasing behind, switch machines moving."""
+
+import pytest
+
+from cbtc.authority.network_limit import network_limit
+from cbtc.errors import ConfigError
+from cbtc.layout_files import load_track
+from cbtc.railway.itinerary import default_plans, itinerary
+from cbtc.sim.runs import sim_config
+from cbtc.sim.simulation import Simulation
+
+
+def test_itineraries_of_the_passing_loop_use_both_platforms_and_come_round():
+    network = load_track("lego_passing_loop")
+    plans = default_plans(network, ("main", True), 2)
+    assert plans == [("south_main", "north"), ("south_loop", "north")]
+    loop = itinerary(network, ("main", True), plans[1])
+    assert loop == (("main", True), ("W1.diverging", True), ("platform_loop", True), ("W2.diverging", False))
+    assert network.graph.route(loop).closed
+
+
+def test_a_plan_that_cannot_be_made_in_one_round_is_refused_naming_the_station():
+    network = load_track("lego_passing_loop")
+    with pytest.raises(ConfigError, match="station south_loop"):
+        itinerary(network, ("main", True), ("south_main", "south_loop"))
+
+
+def test_on_a_loop_the_nearest_switch_not_in_the_routes_leg_bounds_the_authority():
+    network = load_track("lego_passing_loop")
+    route = network.graph.route(itinerary(network, ("main", True), ("south_loop",)))
+    head_s = route.starts_m[2] + 0.3    # on platform_loop: W2 is next, W1 (behind) comes round last
+    limit = network_limit(route, head_s, "T1", {}, {"W1": "straight", "W2": None})
+    assert "switch W2" in limit.reason
+    assert limit.distance_m == pytest.approx(route.starts_m[3] - head_s)
+
+
+def test_four_trains_run_the_passing_loop_safely_making_their_plans():
+    sim = Simulation(sim_config("lego_passing_loop", 4, 0, 150.0))
+    summary = sim.run().summary()
+    assert summary["collisions"] == 0
+    assert summary["authority_overruns"] == 0
+    assert summary["switch_violations"] == 0
+    assert summary["plan_completed"]
+    assert all(t["station_stops"] >= 10 for t in summary["trains"])
+
+
+@pytest.mark.parametrize("fault", ["switch_stall", "switch_detection_lost", "switch_wrong_leg"])
+def test_a_switch_that_fails_as_trains_approach_ends_their_authority_before_it(fault):
+    # W1 splits the main line into the two platforms: from 3 s on every move of it fails for 20 s
+    config = sim_config("lego_passing_loop", 3, 1, 40.0, fault_texts=[f"{fault}:switch=W1,at_s=3,duration_s=20"])
+    sim = Simulation(config)
+    held_at_w1 = set()
+    for t_s in range(1, 41):
+        sim.scheduler.run_until(float(t_s))
+        for train in sim.trains:
+            why = sim.zc.state_of(train.train_id).limited_by or ""
+            if "switch W1" in why:
+                held_at_w1.add(train.train_id)
+    summary = sim.recorder.summary()
+    assert held_at_w1, "no train was ever limited by the failed switch"
+    assert (summary["collisions"], summary["authority_overruns"], summary["switch_violations"]) == (0, 0, 0)
+    assert summary["granted_beyond_m"] < 0.0
+
+
+def test_a_detection_that_shows_a_leg_never_commanded_is_not_believed():
+    sim = Simulation(sim_config("lego_passing_loop", 2, 0, 5.0))
+    routes, train = sim.zc.network, sim.zc.state_of("T2")   # T2's itinerary runs W1 diverging
+    w1_s = routes.frames["T2"].starts_m[1]
+    t_s = 0.5
+    while not (train.authority and routes.interlocking.switch_leg["W1"] == "diverging"):
+        t_s += 0.1
+        sim.scheduler.run_until(t_s)
+    to_w1_m = w1_s - sim.trains[1].head_s
+    assert 0.1 < to_w1_m < 2.0                                    # on its way to W1
+    far = train.authority.cut_to(10.0, "a long authority")
+    routes.detection = lambda now_s: {"W1": "diverging", "W2": "straight"}
+    assert routes.clear_of(train, far, t_s).distance_m > 1.0     # commanded and detected diverging: through W1
+    routes.interlocking.switch_leg["W1"] = "straight"              # as if the zone had commanded straight
+    cut = routes.clear_of(train, far, t_s)
+    assert cut.distance_m < to_w1_m and "switch W1" in cut.reason and "correspondence" in cut.reason
+
+
+def test_faults_that_place_things_along_one_path_are_refused_on_a_network_and_switch_faults_on_a_path(capsys):
+    from cbtc.cli import main
+    assert main(["sim", "--layout", "lego_passing_loop", "--trains", "2", "--duration", "5",
+                 "--fault", "unknown_board"]) == 2
+    assert "not on the track network lego_passing_loop" in capsys.readouterr().err
+    assert main(["sim", "--layout", "lego_oval", "--trains", "2", "--duration", "5", "--fault", "switch_stall"]) == 2
+    assert "needs a track network" in capsys.readouterr().err
+
+
+def test_a_campaign_runs_each_fault_class_on_the_layouts_it_runs_on():
+    from cbtc.experiments import campaign
+    specs = campaign.plan(60, list(campaign.CLASSES), campaign.LAYOUTS, campaign.FLEET_SIZES, 30.0, 0)
+    for spec in specs:
+        network = campaign.is_network(spec.layout)
+        assert campaign.runs_on(spec.fault_class, spec.layout)
+        assert not network or spec.trains <= campaign.NETWORK_FLEET
+        names = {text.partition(":")[0] for text in spec.faults}
+        assert not (names & set(campaign.faults.PATH_ONLY) if network else names & set(campaign.faults.SWITCH_FAULTS))
+    switch_runs = [s for s in specs if s.fault_class.startswith("switch_")]
+    assert switch_runs and all(campaign.is_network(s.layout) for s in switch_runs)
+    with pytest.raises(ConfigError, match="switch_stall"):
+        campaign.plan(3, ["switch_stall"], ("lego_oval",), (2,), 30.0, 0)
