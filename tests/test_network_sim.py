@@ -103,3 +103,44 @@ def test_a_campaign_runs_each_fault_class_on_the_layouts_it_runs_on():
     assert switch_runs and all(campaign.is_network(s.layout) for s in switch_runs)
     with pytest.raises(ConfigError, match="switch_stall"):
         campaign.plan(3, ["switch_stall"], ("lego_oval",), (2,), 30.0, 0)
+
+
+def test_a_fast_train_overtakes_a_slow_one_dwelling_in_the_passing_loop():
+    from cbtc.sim.runs import scenario_config
+    summary = Simulation(scenario_config("lego_passing_overtake", duration_s=120.0)).run().summary()
+    fast, slow = summary["trains"]
+    assert summary["overtakes"] >= 2 and fast["overtakes"] >= 2 and fast["distance_m"] > 1.5 * slow["distance_m"]
+    assert (summary["collisions"], summary["authority_overruns"], summary["switch_violations"]) == (0, 0, 0)
+
+
+def test_two_trains_converging_on_one_switch_take_turns_whichever_comes_first():
+    from cbtc.sim.runs import scenario_config
+    first = set()
+    for seed in range(3):
+        summary = Simulation(scenario_config("lego_merge_converging", seed=seed, duration_s=30.0)).run().summary()
+        assert (summary["collisions"], summary["authority_overruns"], summary["switch_violations"]) == (0, 0, 0)
+        a, b = summary["trains"]
+        assert min(a["distance_m"], b["distance_m"]) > 1.0     # the second follows the first down the line
+        first.add("A" if a["distance_m"] > b["distance_m"] else "B")
+    assert first == {"A", "B"}
+
+
+@pytest.mark.parametrize("train, message", [
+    ({"id": "A", "start": "main"}, "a mapping of section, offset_m, forward"),
+    ({"id": "A", "start": {"section": "mian", "offset_m": 1.0}}, "no section 'mian'"),
+    ({"id": "A", "start": {"section": "main", "offset_m": 9.0}}, "past the end of section main"),
+    ({"id": "A", "start": {"section": "main", "offset_m": 1.0}, "stops": ["south_main", "south_loop"]},
+     "station south_loop"),
+])
+def test_a_network_scenario_names_a_bad_start_or_plan(train, message):
+    from cbtc.scenario_files import scenario_from_dict
+    with pytest.raises(ConfigError, match=message):
+        scenario_from_dict({"layout": "lego_passing_loop", "trains": [train]}, "my.yaml")
+
+
+def test_network_trains_that_overlap_at_the_start_are_refused():
+    from cbtc.scenario_files import scenario_from_dict
+    trains = [{"id": "A", "start": {"section": "main", "offset_m": 1.0}},
+              {"id": "B", "start": {"section": "main", "offset_m": 1.2}}]
+    with pytest.raises(ConfigError, match="trains A and B overlap at the start"):
+        scenario_from_dict({"layout": "lego_passing_loop", "trains": trains}, "my.yaml")
