@@ -269,7 +269,7 @@ class ZoneController:
             sit = self.policy.signal(sit)   # fixed block: the wayside sends its speed code through the rails first
             auth = self.watch.clear_of(state, within_horizon(self.policy.authority(sit), state.horizon_m), now_s)
             if self.network is not None:
-                auth = self.network.clear_of(state, auth, now_s)
+                auth = self.network.clear_of(state, auth, now_s, leader)
             elif not self.swept.complete:
                 auth = self.swept.clear_of(state, auth, self.params.k_sigma, self.params.margin_m)
             self._took(state, auth)

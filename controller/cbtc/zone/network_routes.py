@@ -176,17 +176,20 @@ class NetworkRoutes:
 
     # --- per train --------------------------------------------------------------------------------------------------
 
-    def clear_of(self, st, auth, now_s):
-        """`auth` cut to where `st`'s authority ends on the network, its margin off."""
+    def clear_of(self, st, auth, now_s, leader=None):
+        """`auth` cut to where `st`'s authority ends on the network, its margin off; `leader` (the train the policy
+        followed) counts here only where it stands on a switch or crossing or off `st`'s itinerary: on the
+        itinerary's plain track the policy has bounded it already, with the leader's motion (departure control)."""
         commanded = self.interlocking.switch_leg   # a detection is believed only where it shows what was commanded
         detected = {w: leg if leg == commanded.get(w) else None for w, leg in self.detection(now_s).items()}
-        limit = self.limit(st, detected)
+        limit = self.limit(st, detected, None if leader is None else leader.train_id)
         if limit.distance_m - self.margin_m < auth.distance_m:
             return auth.cut_to(max(0.0, limit.distance_m - self.margin_m), limit.reason)
         return auth
 
-    def limit(self, st, detected_legs) -> NetworkLimit:
-        """Where `st`'s authority ends on the network, from its front-most plausible head."""
+    def limit(self, st, detected_legs, leader=None) -> NetworkLimit:
+        """Where `st`'s authority ends on the network, from its front-most plausible head (the span of train
+        `leader` taken only where it is on a switch or crossing or off `st`'s itinerary)."""
         train = st.train_id
         if train not in self.heads:
             return NetworkLimit(0.0, "not located on the network")
@@ -196,7 +199,12 @@ class NetworkRoutes:
         why = self.refused[train]
         best = NetworkLimit(held_m, f"the end of the route it holds ({why})" if why else
                             "the end of the route the interlocking holds for it")
-        net = network_limit(frame, head_s, train, self.spans, detected_legs)
+        spans = self.spans
+        if leader in spans:
+            sections, on_route = self.network.graph.sections, {name for name, _f in frame.steps}
+            spans = dict(spans)
+            spans[leader] = tuple(iv for iv in spans[leader] if sections[iv[0]].piece or iv[0] not in on_route)
+        net = network_limit(frame, head_s, train, spans, detected_legs)
         return net if net.distance_m < best.distance_m else best
 
     def leader(self, st, states):
