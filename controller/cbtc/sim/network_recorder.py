@@ -175,6 +175,10 @@ class NetworkRecorder:
             "granted_beyond_m": round(max(beyond), 4) if beyond else None,
             "stranded": sum(t["stranded"] for t in trains),
             "emergency_trips": sum(t.obu.trips for t in sim.trains),
+            "encoder_trips": sum(t.obu.enc_fails for t in sim.trains),
+            "mean_following_gap_m": None,
+            "min_gap_m": None,
+            "mean_lap_s": None,
             "all_standing_at_end_s": round(self._t_last_s - (self._t_first_s if self._moving_last_s is None
                                                               else self._moving_last_s), 3) if started else 0.0,
             "gridlocked": False,
