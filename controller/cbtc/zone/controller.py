@@ -209,9 +209,9 @@ class ZoneController:
 
     def _decoded(self, state, payload, recv_s):
         """The report of `payload`, authenticated and checked; None, counted and said, when it is not one."""
-        report = decoded_report(state, payload, self.key_source, lambda klass, reason, advice: self._refuse(
-            state, klass, reason, recv_s, advice))
+        report, refusal = decoded_report(state, payload, self.key_source)
         if report is None:
+            self._refuse(state, refusal[0], refusal[1], recv_s, refusal[2])
             self.invalid_reports += 1
         return report
 
