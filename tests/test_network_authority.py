@@ -5,12 +5,14 @@ circulating round the passing loop, with truth checked every step (no two trains
 track its routes do not hold)."""
 
 import math
+from functools import partial
 
 import pytest
 
 from cbtc.authority.network_limit import fixed_block_limit, network_limit
 from cbtc.layout_files import load_track
 from cbtc.railway.interlocking import Interlocking, find_routes
+from cbtc.railway.network_layout import BLOCK_M, section_blocks
 from cbtc.sim.switch_machines import SWITCH_FAULTS, SwitchMachine
 from network_model import RunningTrain, collisions, truth_spans, world_now
 
@@ -189,13 +191,35 @@ def test_sumo_merge_case_two_trains_converging_on_one_switch(seed):
 def test_moving_block_runs_more_trains_round_the_loop_than_fixed_blocks():
     # two trains round the oval, one through each platform, routes following each other: under moving block each
     # runs up to the other's tail; under fixed blocks (a signal at every section's entry: at each switch's toe and
-    # heels) it waits at the signal before any section the other is in, on the 3.8 m main line too
+    # heels, none between: block_m longer than any section) it waits at the signal before any section the other is
+    # in, on the 3.8 m main line too
     placements = {"A": (("main", True), 1.0), "B": (("platform_loop", True), 0.4)}
     plans = {"A": ["platform_main", "main"], "B": ["platform_loop", "main"]}
     laps = {}
-    for name, limit in (("moving", network_limit), ("fixed", fixed_block_limit)):
+    at_switches = partial(fixed_block_limit, block_m=4.0)
+    for name, limit in (("moving", network_limit), ("fixed", at_switches)):
         stats = run("lego_passing_loop", placements, plans, 120.0, limit=limit)
         assert stats["collisions"] == [] and stats["overruns"] == [] and stats["switch_violations"] == []
         laps[name] = sum(stats["arrivals"].values())
         assert any(r.startswith("block") for r in stats["reasons"]) == (name == "fixed")
     assert laps["moving"] >= 1.4 * laps["fixed"], laps
+
+
+def test_fixed_blocks_signal_plain_track_every_block_and_each_switch_leg_whole():
+    graph = load_track("lego_passing_loop").graph
+    main, leg = graph.sections["main"], graph.sections["W1.straight"]
+    cuts = section_blocks(main)
+    assert len(cuts) == 5 and cuts[0][0] == 0.0 and cuts[-1][1] == pytest.approx(main.length_m)
+    assert all(hi - lo <= BLOCK_M for lo, hi in cuts) and section_blocks(leg) == ((0.0, leg.length_m),)
+    route = graph.route([("main", True), ("W1.straight", True)])
+    block_m = main.length_m / 5
+    # B's tail in main's third block: A, in the first, waits at that block's signal (moving block: at B's tail)
+    spans = {"B": (("main", 2.2 * block_m, 2.5 * block_m),)}
+    fixed = fixed_block_limit(route, 0.3, "A", spans, {"W1": "straight"})
+    assert fixed.distance_m == pytest.approx(2 * block_m - 0.3) and "block main.3" in fixed.reason
+    moving = network_limit(route, 0.3, "A", spans, {"W1": "straight"})
+    assert moving.distance_m == pytest.approx(2.2 * block_m - 0.3)
+    # a train on the switch's other leg fouls the whole switch: A waits at the switch's toe
+    spans = {"B": (("W1.diverging", 0.1, 0.2),)}
+    fixed = fixed_block_limit(route, 0.3, "A", spans, {"W1": "straight"})
+    assert fixed.distance_m == pytest.approx(main.length_m - 0.3)

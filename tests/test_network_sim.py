@@ -1,6 +1,8 @@
 """The zone and the simulator on a track network: virtual trains running the board's own loop over their
 itineraries, the zone's interlocking setting routes ahead of them and releasing behind, switch machines moving."""
 
+import json
+
 import pytest
 
 from cbtc.authority.network_limit import network_limit
@@ -144,3 +146,29 @@ def test_network_trains_that_overlap_at_the_start_are_refused():
               {"id": "B", "start": {"section": "main", "offset_m": 1.2}}]
     with pytest.raises(ConfigError, match="trains A and B overlap at the start"):
         scenario_from_dict({"layout": "lego_passing_loop", "trains": trains}, "my.yaml")
+
+
+def test_compare_on_the_passing_loop_runs_more_trains_under_moving_block_both_safe(capsys):
+    from cbtc.cli import main
+    assert main(["compare", "--layout", "lego_passing_loop", "--trains", "4", "--duration", "90", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    systems = result["systems"]
+    for figures in systems.values():
+        assert figures["collisions"] == figures["authority_overruns"] == figures["switch_violations"] == 0, figures
+        assert figures["plan_completed"], figures
+    assert systems["moving_block"]["trains_per_hour"] > 1.2 * systems["fixed_block"]["trains_per_hour"], systems
+    assert result["trains_per_hour_gain_pct"] > 20.0
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["compare", "--layout", "lego_passing_loop", "--laps", "2"], "--laps: not on a track network"),
+    (["compare", "--layout", "lego_passing_loop", "--blocks", "3"], "--blocks: not on a track network"),
+    (["compare", "--trains", "3"], "--trains: only for a track network"),
+    (["compare", "--scenario", "lego_passing_overtake", "--trains", "3"], "--trains: the scenario"),
+    (["sim", "--layout", "lego_passing_loop", "--policy", "fixed_block", "--blocks", "4"], "drop --start-gap and"),
+])
+def test_flags_that_do_not_apply_on_a_network_are_refused_in_one_line(capsys, argv, named):
+    from cbtc.cli import main
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert named in err and err.count("\n") == 1 and "Traceback" not in err, err

@@ -263,8 +263,8 @@ def test_a_route_through_the_network_is_a_layout_the_zone_can_run():
         assert math.dist(via_main.xy_m(s), oval.xy_m(s)) < 1e-9
     assert [st.name for st in via_main.stations] == ["south_main", "north"]
     assert via_main.station("south_main").s_m == pytest.approx(0.256 + 0.5)
-    assert len(via_main.tags) == 7 and [b.name for b in via_main.blocks] == ["W1.straight", "platform_main",
-                                                                             "W2.straight", "main"]
+    assert len(via_main.tags) == 7 and [b.name for b in via_main.blocks] == \
+        ["W1.straight", "platform_main", "W2.straight", "main.1", "main.2", "main.3", "main.4", "main.5"]
     assert via_main.block_at(0.3).name == "platform_main"
     via_loop = route_layout(loop, [("W1.diverging", True), ("platform_loop", True), ("W2.diverging", False),
                                    ("main", True)])

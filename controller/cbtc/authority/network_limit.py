@@ -4,13 +4,14 @@ The limit is the first of: the rear-most plausible tail of any other train whose
 lies on the route ahead or fouls it at a switch the route runs through (a train converging on the other leg of a
 merge included), a switch whose detected position is not the route's leg (moving, detection lost, wrong leg), the end
 of the held route (the end of the track included: a route ends at a buffer stop at the latest). The fixed-block
-baseline stops a train at the signal before the first occupied section instead. Pure: values in.
+baseline stops a train at the signal before the first occupied block instead. Pure: values in.
 """
 
 from dataclasses import dataclass
 
 from cbtc.railway.ahead import look_ahead
 from cbtc.railway.geometry import forward_m
+from cbtc.railway.network_layout import BLOCK_M, section_blocks
 
 
 @dataclass(frozen=True)
@@ -39,21 +40,33 @@ def network_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
     return best
 
 
-def fixed_block_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
-    """The fixed-block baseline on a network: signals at every section's entry (so at every switch's toe and heels),
-    and a train may run up to the signal in front of the first section ahead that another train occupies or fouls
-    (any part of a switch or crossing occupied fouls all of it); never past what moving block allows either."""
+def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_M) -> NetworkLimit:
+    """The fixed-block baseline on a network: a signal at the entry of every block (railway.network_layout's
+    section_blocks: every switch's toe and heels, and plain track cut every `block_m` at most), and a train may run up
+    to the signal in front of the first block ahead that another train occupies or fouls (any part of a switch or
+    crossing occupied fouls all of it); never past what moving block allows either."""
     bound = network_limit(route, head_s_m, own, spans, detected_legs)
-    graph = route.graph
-    occupied = {name for train, intervals in spans.items() if train != own for name, _lo, _hi in intervals}
-    fouled = occupied | {n for n, s in graph.sections.items() if s.piece and
-                         any(graph.sections[o].piece == s.piece for o in occupied)}
+    sections = route.graph.sections
+    occupied = set()   # (section, block index)
+    for train, intervals in spans.items():
+        if train == own:
+            continue
+        for name, lo, hi in intervals:
+            mates = {o for o, s in sections.items() if sections[name].piece and s.piece == sections[name].piece}
+            for other in mates | {name}:
+                for k, (b_lo, b_hi) in enumerate(section_blocks(sections[other], block_m)):
+                    if other != name or (lo < b_hi and hi > b_lo):
+                        occupied.add((other, k))
     ahead = []
-    for (name, _fwd), start in zip(route.steps, route.starts_m):
-        d = forward_m(head_s_m, start, route.length_m if route.closed else None)
-        if d > 0.0:
-            ahead.append((d, name))
-    for d, name in sorted(ahead):
-        if name in fouled and d < bound.distance_m:
-            return NetworkLimit(d, f"block {name} occupied: its signal is at danger")
+    for (name, fwd), start in zip(route.steps, route.starts_m):
+        length = sections[name].length_m
+        for k, (b_lo, b_hi) in enumerate(section_blocks(sections[name], block_m)):
+            entry = start + (b_lo if fwd else length - b_hi)
+            d = forward_m(head_s_m, entry, route.length_m if route.closed else None)
+            if d > 0.0:
+                ahead.append((d, name, k))
+    for d, name, k in sorted(ahead):
+        if (name, k) in occupied and d < bound.distance_m:
+            block = name if len(section_blocks(sections[name], block_m)) == 1 else f"{name}.{k + 1}"
+            return NetworkLimit(d, f"block {block} occupied: its signal is at danger")
     return bound

@@ -36,6 +36,7 @@ def _following_row(f):
 
 EXAMPLES = (
     "cbtc compare --laps 1",
+    "cbtc compare --layout lego_passing_loop --duration 300",
     "cbtc compare --scenario lego_oval_mixed --laps 1 --json",
 )
 
@@ -55,6 +56,10 @@ def register(sub):
                    metavar="P",
                    help="bit-error rate of the fixed-block speed-code telegrams on the track circuits (default 0)")
     p.add_argument("--seed", type=arg_types.seed, default=None, help="random seed (default: 0, or the scenario's)")
+    p.add_argument("--trains", type=arg_types.train_count, default=None, metavar="N",
+                   help="on a track network: number of trains (default: 4)")
+    p.add_argument("--duration", type=arg_types.seconds, default=None,
+                   help="on a track network: simulated seconds (default: 600, or the scenario's)")
     p.add_argument("--json", action="store_true", help="print the figures as JSON (no table, no bar)")
     p.add_argument("--plot", metavar="PNG", type=arg_types.plot_file, default="",
                    help="distance-time plot of both systems (the paper's Figure 4)")
@@ -79,6 +84,7 @@ def _number_list(text, option, kind, low, high, what, example):
 
 def run(args):
     # every setting is checked before the first (long) run
+    from cbtc.commands.compare_network import network_base, run_network
     from cbtc.experiments.headway import (
         PAPER,
         block_sweep,
@@ -91,6 +97,9 @@ def run(args):
     from cbtc.layout_files import load_layout
 
     report_periods, speeds, counts = _checked_lists(args)
+    network = network_base(args)
+    if network is not None:
+        return run_network(args, *network)
     base = with_scenario(args, {"layout": "itb_square", "seed": 0}, fixed=("layout",), overrides={"seed": "seed"})
     if base is None:
         laps = args.laps or 5

@@ -9,6 +9,17 @@ from dataclasses import dataclass
 from cbtc.errors import LayoutError
 from cbtc.railway.layout import Block, Layout, Station, Tag
 
+BLOCK_M = 0.8   # the fixed-block baseline's longest block on plain track: about a platform (a train, its margin)
+
+
+def section_blocks(section, block_m=BLOCK_M):
+    """The fixed blocks (start, end offsets) `section` is signalled as: a switch's or crossing's leg is one block
+    (signals at its toe and heels); plain track is cut into equal blocks of at most `block_m`, as lineside block
+    signals would cut it."""
+    count = 1 if section.piece else max(1, -int(-section.length_m // block_m))
+    size = section.length_m / count
+    return tuple((k * size, (k + 1) * size) for k in range(count))
+
 
 @dataclass(frozen=True)
 class NetworkStation:
@@ -58,8 +69,8 @@ class NetworkLayout:
 def route_layout(network, steps, name=None) -> Layout:
     """The single-path Layout a train on the route `steps` runs on: the route flattened into one path (a loop when it
     comes round), the stations on its sections at their stop points for the way the route runs them and the tags at
-    their route coordinates, one fixed block per section
-    (signals at the switches' toes and heels), the network's IPS frame. Positions convert back with Route.locate."""
+    their route coordinates, the fixed blocks of section_blocks (signals at the switches' toes and heels), the
+    network's IPS frame. Positions convert back with Route.locate."""
     route = network.graph.route(steps)
     path = route.path()
     direction = dict(route.steps)
@@ -70,8 +81,14 @@ def route_layout(network, steps, name=None) -> Layout:
     if route.closed:
         stations = [Station(st.name, st.s_m % route.length_m, st.window_m) for st in stations]
         tags = [Tag(t.uid, t.s_m % route.length_m) for t in tags]
-    blocks = [Block(section, start, start + network.graph.sections[section].length_m)
-              for (section, _fwd), start in zip(route.steps, route.starts_m)]
+    blocks = []
+    for (section, fwd), start in zip(route.steps, route.starts_m):
+        cuts = section_blocks(network.graph.sections[section])
+        for k, (lo, hi) in enumerate(cuts if fwd else reversed(cuts)):
+            length = hi - lo
+            name = section if len(cuts) == 1 else f"{section}.{k + 1 if fwd else len(cuts) - k}"
+            blocks.append(Block(name, start, start + length))
+            start += length
     label = name or f"{network.name}:{'+'.join(s for s, _f in route.steps)}"
     return Layout(label, network.source, path, stations, tags, blocks, network.ips)
 

@@ -21,9 +21,9 @@ def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = 
     options = {} if blocks is None else {"blocks": blocks}
     injected = tuple(faults.parse(text) for text in fault_texts)
     if getattr(layout, "is_network", False):
-        if policy != MOVING_BLOCK or start_gap_m is not None:
-            raise ConfigError(f"layout {layout.name} is a track network: it runs under --policy {MOVING_BLOCK} "
-                              "with its trains put down by the network's own rule (no --start-gap) for now")
+        if start_gap_m is not None or blocks is not None:
+            raise ConfigError(f"layout {layout.name} is a track network: its trains are put down by the network's "
+                              "own rule and its blocks are its sections; drop --start-gap and --blocks")
         from cbtc.zone.network_config import network_queue
         config = network_queue(layout, trains, seed=seed, duration_s=duration_s, policy=policy,
                                estimator=estimator)

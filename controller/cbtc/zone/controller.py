@@ -78,7 +78,7 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.swept = SweptTrack(layout)   # the track vouched for; the rest is occupied (cbtc.zone.swept)
-        self.network = network_routes(layout, self.trains, self.params)   # a track network's interlocking; else None
+        self.network = network_routes(layout, self.trains, self.params, policy)   # a network's interlocking, else None
         self.watch = ObstacleWatch(None if self.network else layout,
                                    [st.setup.profile for st in self.trains.values()], self.params,
                                    self.refusals)   # what stands on the track and is no train of the zone
@@ -293,8 +293,8 @@ class ZoneController:
 
     def _situation(self, state, leader, now_s):
         """The values the policy decides `state`'s authority from, behind `leader` (None: alone)."""
-        spans = track_spans(self.policy, self.trains, self.layout, self.params.k_sigma) if self.policy.needs_spans \
-            else ()
+        spans = () if not self.policy.needs_spans else self.network.frame_spans(state) if self.network else \
+            track_spans(self.policy, self.trains, self.layout, self.params.k_sigma)
         ahead = None if leader is None else leader.picture() if self.network is None else \
             self.network.picture_for(leader, state)   # on a network, in `state`'s frame
         return Situation(state.frame, now_s, self.cycle_s, state.picture(), ahead, state.rng_gap,

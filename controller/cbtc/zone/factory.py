@@ -27,6 +27,11 @@ def make_policy(config: ScenarioConfig) -> AuthorityPolicy:
     cls = policy_class(config.policy)
     if not cls.uses_blocks:
         return cls(config.params, **config.policy_options)
+    if getattr(config.layout, "is_network", False):
+        if config.policy_options.get("blocks") is not None:
+            raise ConfigError(f"{cls.title}: layout {config.layout.name} is a track network, whose blocks are its "
+                              "sections (a signal at every switch): drop --blocks")
+        return cls(config.params, **{"seed": config.seed, **config.policy_options})
     try:
         policy = cls(config.params, **{"seed": config.seed, **config.policy_options})
         blocks = policy.blocks(config.layout)

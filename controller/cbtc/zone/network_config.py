@@ -19,6 +19,12 @@ def network_queue(network, n_trains, seed=0, duration_s=300.0, **overrides) -> S
     if not plain:
         raise ConfigError(f"{network.source}: no section outside a switch or crossing to put trains on")
     start = max(plain, key=lambda s: (s.length_m, s.name))
+    first = itinerary(network, (start.name, True), default_plans(network, (start.name, True), 1)[0])
+    if not graph.route(first).closed:
+        raise ConfigError(f"{network.source}: layout {network.name} is a track network whose trains cannot come "
+                          f"round from section {start.name} (a line: they would reverse at its ends, which "
+                          "simulated runs do not do yet); run a network with a loop, such as lego_passing_loop "
+                          "or lego_figure_eight (cbtc layout list)")
     need_m = profile.length_m + params.margin_m + 0.05
     if n_trains < 1 or n_trains * need_m > start.length_m - 0.05:
         raise ConfigError(f"{n_trains} trains do not fit on section {start.name} of {network.name} "
@@ -30,11 +36,6 @@ def network_queue(network, n_trains, seed=0, duration_s=300.0, **overrides) -> S
         train_id = f"T{k + 1}"
         steps = itinerary(network, (start.name, True), plan)
         route = graph.route(steps)
-        if not route.closed:
-            raise ConfigError(f"{network.source}: layout {network.name} is a track network whose trains cannot come "
-                              f"round from section {start.name} (a line: they would reverse at its ends, which "
-                              "simulated runs do not do yet); run a network with a loop, such as lego_passing_loop "
-                              "or lego_figure_eight (cbtc layout list)")
         frame = route_layout(network, steps, name=f"{network.name} ({train_id}'s itinerary)")
         head_m = start.length_m - 0.05 - k * spacing_m
         trains.append(TrainSpec(train_id, route.s_of(start.name, head_m), plan, profile, frame=frame, route=route))

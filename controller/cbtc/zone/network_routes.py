@@ -16,7 +16,7 @@ the policy follows (Takagi following and departure control as on a loop).
 import logging
 from math import inf
 
-from cbtc.authority.network_limit import NetworkLimit, network_limit
+from cbtc.authority.network_limit import NetworkLimit, fixed_block_limit, network_limit
 from cbtc.authority.values import TrainPicture
 from cbtc.railway.ahead import look_ahead
 from cbtc.railway.geometry import forward_m
@@ -27,9 +27,11 @@ DEPART_S = 2.0   # a dwelling train's route is set this long before its dwell en
 
 
 class NetworkRoutes:
-    def __init__(self, network, frames, k_sigma, margin_m):
-        """`frames`: train id -> the Route of its itinerary (the zone's frame of that train)."""
+    def __init__(self, network, frames, k_sigma, margin_m, fixed_blocks=False):
+        """`frames`: train id -> the Route of its itinerary (the zone's frame of that train); `fixed_blocks`: the
+        fixed-block baseline (a signal at every section's entry) in place of moving block."""
         self.network = network
+        self.fixed_blocks = fixed_blocks
         self.frames = dict(frames)
         self.k_sigma = k_sigma
         self.margin_m = margin_m
@@ -200,12 +202,29 @@ class NetworkRoutes:
         best = NetworkLimit(held_m, f"the end of the route it holds ({why})" if why else
                             "the end of the route the interlocking holds for it")
         spans = self.spans
+        if self.fixed_blocks:   # no train is followed by its motion: the first occupied section's signal bounds it
+            net = fixed_block_limit(frame, head_s, train, spans, detected_legs)
+            return net if net.distance_m < best.distance_m else best
         if leader in spans:
             sections, on_route = self.network.graph.sections, {name for name, _f in frame.steps}
             spans = dict(spans)
             spans[leader] = tuple(iv for iv in spans[leader] if sections[iv[0]].piece or iv[0] not in on_route)
         net = network_limit(frame, head_s, train, spans, detected_legs)
         return net if net.distance_m < best.distance_m else best
+
+    def frame_spans(self, st):
+        """(train_id, head_s, tail_s) in `st`'s frame of every other train's span on a section of its itinerary, one
+        per section (what the fixed-block policy reads as track circuits there)."""
+        frame = self.frames[st.train_id]
+        out = []
+        for train, intervals in self.spans.items():
+            if train == st.train_id:
+                continue
+            for name, lo, hi in intervals:
+                a, b = frame.s_of(name, lo), frame.s_of(name, hi)
+                if a is not None and b is not None:
+                    out.append((train, max(a, b), min(a, b)))
+        return tuple(out)
 
     def leader(self, st, states):
         """The train ahead of `st` on its itinerary whose head lies on it (the one its policy follows), or None."""
@@ -242,10 +261,10 @@ class NetworkRoutes:
         return [other for other in states if other is not st and self.leader(other, states) is st]
 
 
-def network_routes(layout, trains, params):
-    """The NetworkRoutes of a track network's zone (`trains`: id -> TrainState, each setup with its itinerary), or None
-    on a single path."""
+def network_routes(layout, trains, params, policy):
+    """The NetworkRoutes of a track network's zone (`trains`: id -> TrainState, each setup with its itinerary; a
+    `policy` that signals blocks gets a signal at every section's entry), or None on a single path."""
     if not getattr(layout, "is_network", False):
         return None
     return NetworkRoutes(layout, {st.train_id: st.setup.itinerary for st in trains.values()}, params.k_sigma,
-                         params.margin_m)
+                         params.margin_m, fixed_blocks=policy.uses_blocks)
