@@ -44,7 +44,8 @@ def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_
     """The fixed-block baseline on a network: a signal at the entry of every block (railway.network_layout's
     section_blocks: every switch's toe and heels, and plain track cut every `block_m` at most), and a train may run up
     to the signal in front of the first block ahead that another train occupies or fouls (any part of a switch or
-    crossing occupied fouls all of it); never past what moving block allows either."""
+    crossing occupied fouls all of it; a switch or crossing whose exit block is taken counts as taken); never past
+    what moving block allows either."""
     bound = network_limit(route, head_s_m, own, spans, detected_legs)
     sections = route.graph.sections
     occupied = set()   # (section, block index)
@@ -65,8 +66,18 @@ def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_
             d = forward_m(head_s_m, entry, route.length_m if route.closed else None)
             if d > 0.0:
                 ahead.append((d, name, k))
-    for d, name, k in sorted(ahead):
-        if (name, k) in occupied and d < bound.distance_m:
+    ahead.sort()
+    # a switch's or crossing's signal clears only with the block beyond it clear too: a train let onto a junction
+    # it cannot leave would hold it against the trains it waits for (a ring of blocks locked up)
+    exit_taken = False
+    for i in range(len(ahead) - 1, -1, -1):
+        d, name, k = ahead[i]
+        taken = (name, k) in occupied or (bool(sections[name].piece) and exit_taken)
+        exit_taken = taken
+        ahead[i] = (d, name, k, taken)
+    for d, name, k, taken in ahead:
+        if taken and d < bound.distance_m:
             block = name if len(section_blocks(sections[name], block_m)) == 1 else f"{name}.{k + 1}"
-            return NetworkLimit(d, f"block {block} occupied: its signal is at danger")
+            why = "occupied" if (name, k) in occupied else "clear, the block beyond it not"
+            return NetworkLimit(d, f"block {block} {why}: its signal is at danger")
     return bound

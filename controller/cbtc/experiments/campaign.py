@@ -142,12 +142,17 @@ def is_network(layout: str) -> bool:
     return bool(getattr(load_track(layout), "is_network", False))
 
 
+def has_switches(layout: str) -> bool:
+    from cbtc.layout_files import load_track
+    return bool(getattr(getattr(load_track(layout), "graph", None), "switches", None))
+
+
 def runs_on(cls: str, layout: str) -> bool:
-    """Whether fault class `cls` runs on `layout`: the switch faults on track networks only; packed_start and the
-    faults that place a train, a car or a tag along one path on single paths only."""
+    """Whether fault class `cls` runs on `layout`: the switch faults on track networks with switches only;
+    packed_start and the faults that place a train, a car or a tag along one path on single paths only."""
     name, network = cls.partition(":")[0], is_network(layout)
     if name in faults.SWITCH_FAULTS:
-        return network
+        return has_switches(layout)
     return not network or (name not in faults.PATH_ONLY and name != PACKED)
 
 
@@ -167,8 +172,8 @@ def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int,
     lacking = [cls for cls, names in own.items() if not names]
     if lacking:
         raise ConfigError(f"fault classes {', '.join(lacking)} run on none of the layouts {', '.join(layouts)} (switch "
-                          f"faults need a track network, such as lego_passing_loop; packed_start and the faults that "
-                          f"place things along one path need a loop or a line): add one to --layouts")
+                          f"faults need a track network with switches, such as lego_passing_loop; packed_start and the "
+                          f"faults that place things along one path need a loop or a line): add one to --layouts")
     for k in range(runs):
         cls = classes[k % len(classes)]
         combo, names = k // len(classes), own[cls]
@@ -181,7 +186,8 @@ def plan(runs: int, classes, layouts, fleet_sizes, duration_s: float, seed: int,
             specs.append(packed_start(layout, n, run_seed, duration_s))
         else:
             specs.append(RunSpec(cls, layout, n, run_seed, duration_s,
-                                 draw_faults(cls, run_seed, n, duration_s, network=is_network(layout))))
+                                 draw_faults(cls, run_seed, n, duration_s, network=is_network(layout),
+                                             switches=has_switches(layout))))
     return specs
 
 
@@ -199,13 +205,15 @@ def packed_start(layout: str, n_trains: int, seed: int, duration_s: float) -> Ru
     return RunSpec(PACKED, layout, n_trains, seed, duration_s, (), FIXED_BLOCK, blocks, gap_m)
 
 
-def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids=None, network=False) -> tuple:
+def draw_faults(cls: str, seed: int, n_trains: int, duration_s: float, train_ids=None, network=False,
+                switches=None) -> tuple:
     """The fault texts of class `cls` (as given to --faults) for a run: drawn from `seed`, the same on every machine;
     a fault's train is one of `train_ids` (default T1..Tn); `combined` and `overlapping` draw among the faults that run
-    on the layout (a track network: `network`)."""
+    on the layout (a track network: `network`; one with switches: `switches`, by default `network`)."""
     rng = random.Random(f"{cls}/{seed}")
     ids = list(train_ids or [f"T{i + 1}" for i in range(n_trains)])
-    shut_out = faults.PATH_ONLY if network else faults.SWITCH_FAULTS
+    switches = network if switches is None else switches
+    shut_out = (faults.PATH_ONLY if network else ()) + (() if switches else faults.SWITCH_FAULTS)
     pool = sorted(name for name in CAMPAIGN_RANGES if name not in shut_out)
     if cls == NONE:
         return ()

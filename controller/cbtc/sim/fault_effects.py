@@ -312,6 +312,9 @@ def _tag_moved(sim, train, p):
 
 def _switch_fault(name):
     def schedule(sim, _train, p):
+        if not sim.switches:
+            raise ConfigError(f"fault {name}: {sim.config.layout.name} has no switch; run it on a layout with "
+                              "switches, such as lego_passing_loop (cbtc layout list)")
         switch = p["switch"] or next(iter(sim.switches))
         machine = sim.switches.get(switch)
         if machine is None:

@@ -14,6 +14,7 @@ from math import inf
 
 from cbtc.railway.ahead import look_ahead
 from cbtc.sim.network_truth import collisions
+from cbtc.sim.recorder import board_granted_m
 
 STRANDED_S = 20.0
 GRACE_S = 0.5   # an authority over a switch whose detection is lost is a violation once the zone has had this long
@@ -81,7 +82,7 @@ class NetworkRecorder:
                 self.switch_violations[i] += 1
             self._on_wrong[i] = wrong
             head_s = train.s0_m + train.travelled_m
-            granted_m = max(0.0, (train.obu.eoa_mm - train.obu.odo_mm) / 1000.0) if train.obu.eoa_mm else 0.0
+            granted_m = board_granted_m(train, now_s) or 0.0
             ahead = look_ahead(train.route, head_s, spans, train.train_id)
             room_m = min(ahead.trains[0][1] if ahead.trains else inf, ahead.end_m)
             if granted_m > 0.0 and room_m < inf:

@@ -232,11 +232,8 @@ class Recorder:
         else:
             room_m = layout.length_m - heads[i]
         self.room_m[i] = room_m
-        obu = train.obu
-        if obu.command_valid(train.board_ms(now_s)):
-            # odometer mm to true m at the rate the wheel counts now (its error, and a slip or spin fault)
-            counts_per_true_m = (1.0 + train.profile.encoder_scale_error) * train.encoder.scale_fault
-            granted_m = (obu.eoa_mm - obu.odo_mm) / 1000.0 / counts_per_true_m
+        granted_m = board_granted_m(train, now_s)
+        if granted_m is not None:
             self.granted_beyond_m[i] = max(self.granted_beyond_m[i], granted_m - room_m)
 
     def stranded(self, i) -> bool:
@@ -356,3 +353,13 @@ def violations(summary) -> list:
 
 def _metres(value):
     return None if value == -inf else round(float(value), 4)
+
+
+def board_granted_m(train, now_s):
+    """In truth, how far ahead of its head the authority `train`'s board holds reaches, or None while it holds no
+    valid one: odometer mm to true m at the rate the wheel counts now (its error, and a slip or spin fault)."""
+    obu = train.obu
+    if not obu.command_valid(train.board_ms(now_s)):
+        return None
+    counts_per_true_m = (1.0 + train.profile.encoder_scale_error) * train.encoder.scale_fault
+    return (obu.eoa_mm - obu.odo_mm) / 1000.0 / counts_per_true_m

@@ -185,7 +185,8 @@ class Simulation:
 
     def clients(self):
         """Every client of the mock broker in this run: the zone's, the trains', the strays', the recorder's."""
-        return [self.zc_client] + [t.client for t in self.trains + self.strays] + [self.recorder._sniffer]
+        sniffer = getattr(self.recorder, "_sniffer", None)   # a network's recorder reads truth, not the wire
+        return [self.zc_client] + [t.client for t in self.trains + self.strays] + ([sniffer] if sniffer else [])
 
     def _ranging(self, index):
         """The train-to-train ranging driver of train `index` (None unless the config asks for ranging)."""

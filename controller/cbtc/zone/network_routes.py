@@ -21,6 +21,7 @@ from cbtc.authority.values import TrainPicture
 from cbtc.railway.ahead import look_ahead
 from cbtc.railway.geometry import forward_m
 from cbtc.railway.interlocking import Interlocking
+from cbtc.railway.network_layout import section_blocks
 
 log = logging.getLogger("cbtc.zone")
 DEPART_S = 2.0   # a dwelling train's route is set this long before its dwell ends: a switch moves in about a second
@@ -46,13 +47,14 @@ class NetworkRoutes:
         self.on_move = None                 # (switch, leg, now_s): the shell throws a switch the interlocking moved
         self.spans = {}          # train -> its widened span on the network, at the newest refresh
         self._rears = {}         # train -> its span from the rear-most tail to the estimated head (what releases)
+        self._seen = {}          # train -> its span widened, without the way it may have run since its data
         self.heads = {}          # train -> (frame coordinate of its front-most plausible head, section, offset_m)
 
     # --- each cycle -------------------------------------------------------------------------------------------------
 
     def refresh(self, states, now_s):
         """Read every located train's span, release what lies behind each, and set each train's next sections."""
-        self.spans, self.heads, self._rears = {}, {}, {}
+        self.spans, self.heads, self._rears, self._seen = {}, {}, {}, {}
         for st in states:
             span = self._span(st, now_s)
             if span is not None:
@@ -90,6 +92,7 @@ class NetworkRoutes:
         self.heads[st.train_id] = (head, name, offset)
         tail = est.s_m - st.setup.profile.length_m - pic.behind_m - widen
         self._rears[st.train_id] = frame.span(tail, est.s_m)
+        self._seen[st.train_id] = frame.span(tail, head)
         return frame.span(tail, front)
 
     def _chain(self, train):
@@ -141,9 +144,34 @@ class NetworkRoutes:
             step = (here + count) % n
             if count and forward_m(head_s, frame.starts_m[step], frame.length_m if frame.closed else None) > first_m:
                 break
+            if count and not self._can_clear(st, step, head_s, first_m):
+                break
             if not self._set(train, step, moves):
                 break
         return moves
+
+    def _can_clear(self, st, step, head_s, first_m):
+        """Whether `st`'s train, given step `step` of its itinerary, could get clear beyond it: a switch or crossing
+        is taken only with room past it for the train and its margin before the nearest train on the way (under
+        fixed blocks: with the block past it clear), so no train holds a junction it cannot leave while the trains
+        it waits for need that junction (a ring of holds locked up)."""
+        frame, sections = self.frames[st.train_id], self.network.graph.sections
+        n = len(frame.steps)
+        end, k = step, 0
+        while k < n and sections[frame.steps[end][0]].piece:
+            end, k = (end + 1) % n, k + 1
+            if not frame.closed and end == 0:
+                return True      # the line ends in the junction: its buffer stop is the train's place to wait
+        if k == 0:
+            return True          # plain track: the train waits on it
+        room_m = st.setup.profile.length_m + self.margin_m
+        if self.fixed_blocks:
+            name, fwd = frame.steps[end]
+            cuts = section_blocks(sections[name])
+            lo, hi = cuts[0] if fwd else cuts[-1]
+            room_m = max(room_m, hi - lo)
+        exit_m = forward_m(head_s, frame.starts_m[end], frame.length_m if frame.closed else None)
+        return exit_m + room_m <= first_m
 
     def _set(self, train, i, moves):
         """Ask the interlocking for step `i` of `train`'s itinerary; True when set (its switch moves added to
@@ -214,10 +242,11 @@ class NetworkRoutes:
 
     def frame_spans(self, st):
         """(train_id, head_s, tail_s) in `st`'s frame of every other train's span on a section of its itinerary, one
-        per section (what the fixed-block policy reads as track circuits there)."""
+        per section (what the fixed-block policy reads as track circuits there: where the train is, widened by its
+        uncertainty, not where it may have run since its data, which is a bound for the network limit)."""
         frame = self.frames[st.train_id]
         out = []
-        for train, intervals in self.spans.items():
+        for train, intervals in self._seen.items():
             if train == st.train_id:
                 continue
             for name, lo, hi in intervals:

@@ -118,6 +118,18 @@ class TailWatch:
         return abs(grew_m) < 0.25 * head_m
 
 
+def tail_on_track(layout, x_m, y_m, expected_s_m, near_m=0.1):
+    """The track coordinate of a tail fix at (x_m, y_m): the point nearest the tail the head puts it at
+    (`expected_s_m`, within half a metre) when that lies within `near_m` of the fix, else the nearest on the whole
+    track. A path that crosses itself (a figure eight) passes the fix twice; the nearest point is then the other
+    pass as often as not, a tail metres away from the train's."""
+    near_s = layout.project(x_m, y_m, expected_s_m, 0.5)
+    nx_m, ny_m = layout.xy_m(near_s)
+    if (nx_m - x_m) ** 2 + (ny_m - y_m) ** 2 <= near_m ** 2:
+        return near_s
+    return layout.project(x_m, y_m)
+
+
 def see_tail_fix(state, layout, refusals, t_s, x_mm, y_mm):
     """Set a fix of `state`'s tail beacon (IPS frame mm, at controller time `t_s`) against its head estimate then;
     the first time it puts the tail further back than configured by more than IPS noise, say so."""
@@ -132,7 +144,7 @@ def see_tail_fix(state, layout, refusals, t_s, x_mm, y_mm):
         state.tail = TailWatch(state.setup.profile.length_m, layout.loop_length_m)
     tail = state.tail
     was_longer = tail.longer
-    tail.see(t_s, layout.project(x_m, y_m), est.s_m)
+    tail.see(t_s, tail_on_track(layout, x_m, y_m, est.s_m - state.setup.profile.length_m), est.s_m)
     # said once the excess is past what IPS noise makes (TOL_M); a few cm more (the steady mean) is kept back from
     # in silence: it is within what a lasting IPS bias can show, and no length to correct
     if tail.extra_behind_m(est.s_m, t_s) and tail.longer and not was_longer:
