@@ -2,6 +2,7 @@
 roll-away, reverse-movement and train-line protection (firmware/obu.py), the zone's tail beacon check
 (cbtc.zone.tails), and each as a fault in the simulated world, judged by truth."""
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -209,3 +210,23 @@ def test_a_window_too_scattered_to_measure_is_no_error():
         watch.see(k * 0.125, 5.0 - 0.3 - (0.2 * k if k % 2 else 0.0) % 9.0, 5.0)
     watch.extra_behind_m(5.0, 5.0)
     assert watch._steady_extra_m() == 0.0
+
+
+def test_a_tail_fix_where_the_track_crosses_itself_is_read_on_the_tails_own_pass():
+    from cbtc.layout_files import load_layout, load_track
+    from cbtc.railway.itinerary import default_plans, itinerary
+    from cbtc.railway.network_layout import route_layout
+    from cbtc.zone.tails import tail_on_track
+
+    eight = load_track("lego_figure_eight")
+    start = ("east_loop", True)
+    frame = route_layout(eight, itinerary(eight, start, default_plans(eight, start, 1)[0]))
+    first_s, second_s = 2.0846, 4.2315      # the two passes of this frame over the crossing
+    x_m, y_m = frame.xy_m(second_s)
+    assert math.dist(frame.xy_m(first_s), (x_m, y_m)) < 1e-3
+    assert tail_on_track(frame, x_m, y_m, second_s - 0.02) == pytest.approx(second_s, abs=2e-3)
+    assert tail_on_track(frame, x_m, y_m, first_s + 0.03) == pytest.approx(first_s, abs=2e-3)
+    # a tail far from where the head puts it (a car left behind) is still read where it is
+    loop = load_layout("itb_square")
+    x_m, y_m = loop.xy_m(1.0)
+    assert tail_on_track(loop, x_m, y_m, 2.2) == pytest.approx(1.0, abs=1e-3)

@@ -166,9 +166,27 @@ def test_compare_on_the_passing_loop_runs_more_trains_under_moving_block_both_sa
     (["compare", "--trains", "3"], "--trains: only for a track network"),
     (["compare", "--scenario", "lego_passing_overtake", "--trains", "3"], "--trains: the scenario"),
     (["sim", "--layout", "lego_passing_loop", "--policy", "fixed_block", "--blocks", "4"], "drop --start-gap and"),
+    (["sim", "--layout", "lego_figure_eight", "--trains", "2", "--duration", "5", "--fault", "switch_stall"],
+     "lego_figure_eight has no switch"),
 ])
 def test_flags_that_do_not_apply_on_a_network_are_refused_in_one_line(capsys, argv, named):
     from cbtc.cli import main
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert named in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+def test_fixed_blocks_on_the_figure_eight_never_lock_a_ring_of_holds():
+    # four trains on a ring of eight blocks that crosses itself: a train let onto the crossing with its exit block
+    # taken would hold it against the trains it waits for; it waits at the crossing's signal instead
+    summary = Simulation(sim_config("lego_figure_eight", 4, 0, 150.0, policy="fixed_block")).run().summary()
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    assert summary["plan_completed"] and summary["stranded"] == 0, summary["trains"]
+    assert summary["emergency_trips"] <= 2
+
+
+def test_a_broker_outage_on_a_network_is_ridden_out():
+    config = sim_config("lego_passing_loop", 3, 4, 60.0, fault_texts=("broker_outage:at_s=20,duration_s=3",))
+    summary = Simulation(config).run().summary()
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    assert summary["plan_completed"]
