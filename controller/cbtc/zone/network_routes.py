@@ -144,17 +144,18 @@ class NetworkRoutes:
             step = (here + count) % n
             if count and forward_m(head_s, frame.starts_m[step], frame.length_m if frame.closed else None) > first_m:
                 break
-            if count and not self._can_clear(st, step, head_s, first_m):
+            if count and self.fixed_blocks and not self._can_clear(st, step, head_s, first_m):
                 break
             if not self._set(train, step, moves):
                 break
         return moves
 
     def _can_clear(self, st, step, head_s, first_m):
-        """Whether `st`'s train, given step `step` of its itinerary, could get clear beyond it: a switch or crossing
-        is taken only with room past it for the train and its margin before the nearest train on the way (under
-        fixed blocks: with the block past it clear), so no train holds a junction it cannot leave while the trains
-        it waits for need that junction (a ring of holds locked up)."""
+        """Under fixed blocks, whether `st`'s train, given step `step` of its itinerary, could get clear beyond it:
+        a switch or crossing is taken only with the block past it clear and room there for the train and its margin
+        before the nearest train on the way, so no train holds a junction it cannot leave while the trains it waits
+        for need that junction (a ring of holds locked up). Moving block needs no such rule: its trains close up
+        behind each other, and a junction held early lets its switch move before the train is near."""
         frame, sections = self.frames[st.train_id], self.network.graph.sections
         n = len(frame.steps)
         end, k = step, 0
