@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from cbtc.railway.ahead import look_ahead
 from cbtc.railway.geometry import forward_m
-from cbtc.railway.network_layout import BLOCK_M, section_blocks
+from cbtc.railway.network_layout import BLOCK_M, block_name, section_blocks
 
 
 @dataclass(frozen=True)
@@ -47,17 +47,17 @@ def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_
     crossing occupied fouls all of it; a switch or crossing whose exit block is taken counts as taken); never past
     what moving block allows either."""
     bound = network_limit(route, head_s_m, own, spans, detected_legs)
-    sections = route.graph.sections
+    graph = route.graph
+    sections = graph.sections
     occupied = set()   # (section, block index)
     for train, intervals in spans.items():
         if train == own:
             continue
         for name, lo, hi in intervals:
-            mates = {o for o, s in sections.items() if sections[name].piece and s.piece == sections[name].piece}
-            for other in mates | {name}:
-                for k, (b_lo, b_hi) in enumerate(section_blocks(sections[other], block_m)):
-                    if other != name or (lo < b_hi and hi > b_lo):
-                        occupied.add((other, k))
+            occupied.update((mate, 0) for mate in graph.piece_mates(name))   # a piece's leg is one block
+            for k, (b_lo, b_hi) in enumerate(section_blocks(sections[name], block_m)):
+                if lo < b_hi and hi > b_lo:
+                    occupied.add((name, k))
     ahead = []
     for (name, fwd), start in zip(route.steps, route.starts_m):
         length = sections[name].length_m
@@ -77,7 +77,7 @@ def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_
         ahead[i] = (d, name, k, taken)
     for d, name, k, taken in ahead:
         if taken and d < bound.distance_m:
-            block = name if len(section_blocks(sections[name], block_m)) == 1 else f"{name}.{k + 1}"
+            block = block_name(name, k, len(section_blocks(sections[name], block_m)))
             why = "occupied" if (name, k) in occupied else "clear, the block beyond it not"
             return NetworkLimit(d, f"block {block} {why}: its signal is at danger")
     return bound

@@ -5,6 +5,7 @@ from cbtc.authority.policy import FIXED_BLOCK, MOVING_BLOCK
 from cbtc.commands.common import format_table, print_json
 from cbtc.commands.progress_bar import shown, simulation_bar
 from cbtc.errors import ConfigError
+from cbtc.railway.network_layout import BLOCK_M
 
 COLUMNS = [("policy", "system"), ("trains_per_hour", "trains/h"), ("stops_per_hour", "stops/h"),
            ("mean_lap_s", "round s"), ("collisions", "collisions"), ("authority_overruns", "overruns"),
@@ -54,5 +55,5 @@ def run_network(args, base, title) -> int:
     print(f"{title}, seed {base.seed}")
     print(format_table([systems[FIXED_BLOCK], systems[MOVING_BLOCK]], COLUMNS))
     print(f"moving block vs fixed block: {result['trains_per_hour_gain_pct']:+} % trains per hour (fixed blocks: a "
-          f"signal at every switch's toe and heels and on plain track every 0.8 m at most)")
+          f"signal at every switch's toe and heels and on plain track every {BLOCK_M:g} m at most)")
     return 0

@@ -137,14 +137,19 @@ def parse_classes(texts) -> list:
 
 
 @functools.lru_cache(maxsize=None)
-def is_network(layout: str) -> bool:
+def _track_kind(layout: str) -> tuple:
+    """(is a track network, has switches) of `layout`, read once: a plan asks for every run."""
     from cbtc.layout_files import load_track
-    return bool(getattr(load_track(layout), "is_network", False))
+    track = load_track(layout)
+    return bool(getattr(track, "is_network", False)), bool(getattr(getattr(track, "graph", None), "switches", None))
+
+
+def is_network(layout: str) -> bool:
+    return _track_kind(layout)[0]
 
 
 def has_switches(layout: str) -> bool:
-    from cbtc.layout_files import load_track
-    return bool(getattr(getattr(load_track(layout), "graph", None), "switches", None))
+    return _track_kind(layout)[1]
 
 
 def runs_on(cls: str, layout: str) -> bool:

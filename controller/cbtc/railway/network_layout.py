@@ -21,6 +21,12 @@ def section_blocks(section, block_m=BLOCK_M):
     return tuple((k * size, (k + 1) * size) for k in range(count))
 
 
+def block_name(section_name, k, count):
+    """The name of block `k` (from the section's start) of the `count` a section is cut into: the section's own name
+    when it is one block, else `section.k+1`."""
+    return section_name if count == 1 else f"{section_name}.{k + 1}"
+
+
 @dataclass(frozen=True)
 class NetworkStation:
     name: str
@@ -84,11 +90,11 @@ def route_layout(network, steps, name=None) -> Layout:
     blocks = []
     for (section, fwd), start in zip(route.steps, route.starts_m):
         cuts = section_blocks(network.graph.sections[section])
-        for k, (lo, hi) in enumerate(cuts if fwd else reversed(cuts)):
-            length = hi - lo
-            name = section if len(cuts) == 1 else f"{section}.{k + 1 if fwd else len(cuts) - k}"
-            blocks.append(Block(name, start, start + length))
-            start += length
+        order = range(len(cuts)) if fwd else range(len(cuts) - 1, -1, -1)   # in the way the route runs it
+        for k in order:
+            lo, hi = cuts[k]
+            blocks.append(Block(block_name(section, k, len(cuts)), start, start + hi - lo))
+            start += hi - lo
     label = name or f"{network.name}:{'+'.join(s for s, _f in route.steps)}"
     return Layout(label, network.source, path, stations, tags, blocks, network.ips)
 

@@ -23,7 +23,7 @@ def sim_config(layout, trains: int, seed: int, duration_s: float, policy: str = 
     if getattr(layout, "is_network", False):
         if start_gap_m is not None or blocks is not None:
             raise ConfigError(f"layout {layout.name} is a track network: its trains are put down by the network's "
-                              "own rule and its blocks are its sections; drop --start-gap and --blocks")
+                              "own rule and its blocks follow its sections; drop --start-gap and --blocks")
         from cbtc.zone.network_config import network_queue
         config = network_queue(layout, trains, seed=seed, duration_s=duration_s, policy=policy,
                                estimator=estimator)

@@ -5,6 +5,7 @@ from cbtc.authority.fixed_block import FixedBlockPolicy
 from cbtc.authority.moving_block import MovingBlockPolicy
 from cbtc.authority.policy import AuthorityPolicy, policy_names
 from cbtc.errors import ConfigError
+from cbtc.railway.network_layout import BLOCK_M
 from cbtc.zone.config import ScenarioConfig
 from cbtc.zone.controller import ZoneController
 from cbtc.zone.train_state import TrainSetup
@@ -29,8 +30,9 @@ def make_policy(config: ScenarioConfig) -> AuthorityPolicy:
         return cls(config.params, **config.policy_options)
     if getattr(config.layout, "is_network", False):
         if config.policy_options.get("blocks") is not None:
-            raise ConfigError(f"{cls.title}: layout {config.layout.name} is a track network, whose blocks are its "
-                              "sections (a signal at every switch): drop --blocks")
+            raise ConfigError(f"{cls.title}: layout {config.layout.name} is a track network, whose blocks follow its "
+                              f"sections (a signal at every switch's toe and heels, and every {BLOCK_M:g} m at most on "
+                              "plain track): drop --blocks")
         return cls(config.params, **{"seed": config.seed, **config.policy_options})
     try:
         policy = cls(config.params, **{"seed": config.seed, **config.policy_options})

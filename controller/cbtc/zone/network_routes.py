@@ -30,7 +30,8 @@ DEPART_S = 2.0   # a dwelling train's route is set this long before its dwell en
 class NetworkRoutes:
     def __init__(self, network, frames, k_sigma, margin_m, fixed_blocks=False):
         """`frames`: train id -> the Route of its itinerary (the zone's frame of that train); `fixed_blocks`: the
-        fixed-block baseline (a signal at every section's entry) in place of moving block."""
+        fixed-block baseline (a signal at every block's entry, railway.network_layout.section_blocks) in place of
+        moving block."""
         self.network = network
         self.fixed_blocks = fixed_blocks
         self.frames = dict(frames)
