@@ -99,6 +99,10 @@ COMMAND = ("cmd", (
     ("odo_mm_per_m", "int", (500, 2000), "mm/m",
      "a low bound of the train's encoder scale, odometer mm per true metre (1000: it reads true), floored: the "
      "board's curves scale their decelerations by it, and its speed loop the command's speed and rates"),
+    ("dir", "int", (0, 1), "",
+     "direction of travel: 0 the train's own forward (the motor's positive drive), 1 backwards. A board takes a "
+     "change only standing (braked, its odometer still for 0.5 s), keeps nothing of the old direction's authority and "
+     "counts its odometer on, up in the new direction: `eoa_mm` and `stop_mm` lie ahead in the new direction"),
 ))
 
 ZONE_INFO = ("info", (
@@ -124,7 +128,7 @@ TOPICS = (
 
 # what a command's field is when its encoder is not given it (a string: the value of the field it names); a field
 # added to COMMAND needs an entry here only if a caller may leave it out
-COMMAND_DEFAULTS = {"stop_mm": "eoa_mm", "rpt_ms": 0, "odo_mm_per_m": 1000}
+COMMAND_DEFAULTS = {"stop_mm": "eoa_mm", "rpt_ms": 0, "odo_mm_per_m": 1000, "dir": 0}
 
 
 def int_specs(message):

@@ -9,7 +9,7 @@ target speed of zero; a speed over the braking curve by a margin trips the motor
 gap to the train ahead shorter than the emergency braking distance (the collision guard, fault "guard").
 
 A board loads this module's bytecode onto its heap, where every function costs bytes, so the unit's long methods
-stay whole. Split by what they do, each costs more of the 32-bit loop heap (tests/test_heap32.py, 34528 B whole):
+stay whole. Split by what they do, each costs more of the 32-bit loop heap (tests/test_heap32.py, 34624 B whole):
 `_sample` into reading, speed and encoder checks 224 B, `_control` into protection, reference and drive 256 B, the
 config check out of `__init__` 48 B; the module split (its defaults and their check alone, as a module of their own)
 864 B.
@@ -73,6 +73,7 @@ _SPAN_MAX_MS = const(65535)   # the longest time a tag read's span may state (wi
 _BACK_MM = const(20)     # a two-channel encoder seeing the train this far behind the furthest it reached: it rolls
                          # back (undriven: held by driving forward) or runs backwards (driven: braked for good) (mm)
 _JUMP_MM = const(50)     # a signed count this far back in one pass (2.5 m/s at 20 ms) is a glitch, not a roll (mm)
+_STAND_MS = const(500)   # a train takes a change of direction once its odometer has been still this long (ms)
 _HOLD_DONE_MM = const(5)  # a hold drives the train back to within this of the furthest it reached, then brakes (mm)
 
 
@@ -101,6 +102,7 @@ class OnboardUnit:
     holding = False          # roll-away protection: driving the train forward to where it stood
     holds = 0                # times a roll back was held
     _held = False            # some pass since the last report held a roll back
+    way = 1                  # the way of travel the newest command set (its `dir`): 1 forward, -1 backwards
     reverse = False          # the train ran backwards while driven (a motor wired reversed): braked until a reboot
     integrity = None         # the train line's pin where a loop is fitted: it reads 1 once the loop is open
     split = False            # the train line opened (a car came off): braked until a reboot
@@ -125,13 +127,13 @@ class OnboardUnit:
             cfg = dict(DEFAULTS)
             for name in config:
                 if name not in DEFAULTS:
-                    raise ValueError("unknown OnboardUnit config key %r; known: %s"
+                    raise ValueError("unknown config key %r; known: %s"
                                      % (name, ", ".join(sorted(DEFAULTS))))
                 cfg[name] = config[name]
         cpm = cfg["counts_per_m"]
         if not isinstance(cpm, int):
             if not isinstance(cpm, float) or cpm != int(cpm):
-                raise ValueError("counts_per_m must be whole, not %r: round it (cbtc calibrate encoder prints it)"
+                raise ValueError("counts_per_m must be whole, not %r: round it (cbtc calibrate encoder)"
                                  % (cpm,))
             cfg = dict(cfg)
             cfg["counts_per_m"] = int(cpm)
@@ -139,8 +141,8 @@ class OnboardUnit:
         dec = cfg["dec_mmps2"]
         emergency = cfg["emergency_dec_mmps2"]
         if emergency <= dec or cfg["stop_window_mm"] < r_s * r_s * dec * emergency / (2 * (emergency - dec)):
-            raise ValueError("curves cross: need emergency_dec_mmps2 > dec_mmps2, stop_window_mm >= "
-                             "reaction^2 dec emergency / (2 (emergency - dec))")
+            raise ValueError("curves cross: need emergency_dec_mmps2 > dec_mmps2 and a longer stop_window_mm "
+                             "(docs/protocol.md)")
         self.cfg = cfg
         self._report_topic = wire.topic_report(train_id)
         self._cmd_topic = wire.topic_command(train_id)
@@ -192,7 +194,7 @@ class OnboardUnit:
         try:
             cmd = self._codec.decode_command(self._key, topic, payload)
             if cmd["boot"] != self.boot_id:
-                raise wire.WireError("command of boot %d; this is boot %d (recorded before a restart?)"
+                raise wire.WireError("command of boot %d; this is boot %d (recorded before a reboot?)"
                                      % (cmd["boot"], self.boot_id))
             sid = cmd["sid"]
             if sid == self.sid:
@@ -203,20 +205,28 @@ class OnboardUnit:
                 raise wire.WireError("command of session %d, which this board has left for session %d"
                                      % (sid, self.sid))
             elif self.cmd is not None and wrap_diff(cmd["rseq"], self.cmd["rseq"]) <= 0:
-                raise wire.WireError("new session %d is based on report %d, not after session %d's report %d"
+                raise wire.WireError("new session %d: report %d, not after session %d's report %d"
                                      % (sid, cmd["rseq"], self.sid, self.cmd["rseq"]))
             slot = cmd["rseq"] % _HISTORY
             if self._sent_seq[slot] != cmd["rseq"]:
-                raise wire.WireError("stale command: it is based on report %d, which is not among our last %d"
+                raise wire.WireError("stale command: report %d is not among our last %d"
                                      % (cmd["rseq"], _HISTORY))
             age_ms = wrap_diff(now_ms, self._sent_t[slot])
             if age_ms > self.cfg["max_data_age_ms"]:
-                raise wire.WireError("stale command: based on report %d, %d ms old (limit %d ms)"
+                raise wire.WireError("stale command: report %d is %d ms old (limit %d ms)"
                                      % (cmd["rseq"], age_ms, self.cfg["max_data_age_ms"]))
             if self.enc_fail_ms is not None and wrap_diff(self._sent_t[slot], self.enc_fail_ms) <= 0:
-                raise wire.WireError("based on a report before the encoder failed")   # its odometer is lost
+                raise wire.WireError("from before the encoder failed")   # its odometer is lost
             if cmd["eoa_mm"] - self.odo_mm > self.cfg["max_authority_mm"]:   # no line is that long: a zone error
                 raise wire.WireError("eoa over max_authority_mm ahead")
+            if cmd["dir"] != (self.way < 0):   # the last check: a turn, taken standing only (undriven: not held)
+                if self.duty_pct or wrap_diff(now_ms, self._last_move_ms) < _STAND_MS:
+                    raise wire.WireError("turn while moving")
+                # the motor drives the other way, a two-channel encoder counts travel up the new way (the odometer
+                # runs on), and nothing driven or reached in the old direction is kept (undriven, it holds no roll)
+                self.way = self.encoder.way = -self.way
+                self._peak_mm = self.odo_mm
+                self._brake()
         except wire.WireError as exc:
             self.rejected += 1
             self.last_reject = exc.reason
@@ -478,7 +488,7 @@ class OnboardUnit:
             self._held = True
             self.v_ref_mmps = 0.0
             self.duty_pct = min(60, 10 + self._peak_mm - self.odo_mm)
-            self.motor.drive(self.duty_pct)
+            self.motor.drive(self.way * self.duty_pct)
             return
         if self.command_valid(now_ms):
             cmd = self.cmd
@@ -566,7 +576,7 @@ class OnboardUnit:
         if duty_pct > 30 >= self.duty_pct:   # the stall clock runs from when the drive is applied, not from standstill
             self._last_move_ms = now_ms
         self.duty_pct = duty_pct
-        self.motor.drive(duty_pct)
+        self.motor.drive(self.way * duty_pct)
 
     def _brake(self):
         self._ref_mm = 0.0   # braked, the reference asks no travel: none carried over to the next start

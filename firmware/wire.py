@@ -263,7 +263,7 @@ def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode
 COMMAND_INTS = ("boot", 1, BOOT_MAX, "seq", 0, WRAP_MASK, "sid", 0, INT31, "rseq", 0, WRAP_MASK, "v_mmps", 0, 5000,
                 "eoa_mm", -INT31, INT31,
                 "ttl_ms", 1, 10000, "acc", 1, 10000, "dec", 1, 10000, "stop_mm", -INT31, INT31, "rpt_ms", 0, 10000,
-                "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX)
+                "odo_mm_per_m", ODO_MM_PER_M_MIN, ODO_MM_PER_M_MAX, "dir", 0, 1)
 
 
 def decode_command(key, topic, payload, specs=COMMAND_INTS, mac=mac_hex, loads=json.loads):

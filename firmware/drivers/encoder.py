@@ -8,6 +8,9 @@ that has none (GPIO16). The interrupt handlers touch only preallocated ints: rea
 (a bounce or a missed edge seen twice), count, note the time of the edge, return. They are hard interrupts (the
 ESP8266 has them), so the time is the edge's own; they read the levels themselves rather than trust the trigger.
 
+Two channels count travel: `way` is -1 while the train runs backwards (the OnboardUnit sets it when it turns), and
+the wheel turning backwards then counts up, so the odometer runs on through a reversal. One channel counts up anyway.
+
 Each edge's time makes the speed exact to the edge (the M/T method in the OnboardUnit): `count()` also sets `age_us`,
 how long before the read the newest counted edge came.
 """
@@ -32,6 +35,8 @@ _QUAD = (0, -1, 1, 0,
 
 
 class Encoder:
+    way = 1   # the way of travel: -1 running backwards (two channels count the backward turn up)
+
     def __init__(self, pin_a, pin_b=None, quadrature=True):
         self.pin_a = pin_a
         self.pin_b = pin_b
@@ -61,14 +66,14 @@ class Encoder:
         level = self.pin_a.value()
         if level != self._level_a:   # A leading B (00 10 11 01): A and B differ just after each of A's edges
             self._level_a = level
-            self._count += 1 if level != self.pin_b.value() else -1
+            self._count += self.way if level != self.pin_b.value() else -self.way
             self._edge_us = ticks_us()
 
     def _quad_edge(self, _):
         state = (self.pin_a.value() << 1) | self.pin_b.value()
         step = _QUAD[(self._state << 2) | state]
         if step:
-            self._count += step
+            self._count += step * self.way
             self._edge_us = ticks_us()
         self._state = state
 

@@ -66,6 +66,27 @@ def check_encoder_direction_pin():
     assert enc.count() == 4
 
 
+def check_encoder_counts_travel_up_when_the_train_runs_backwards():
+    """`way` -1 (the board turned): the wheel turning backwards counts up, forwards down, on both two-channel
+    decoders; one channel counts up whatever the way."""
+    for quadrature in (True, False):
+        a, b = machine.Pin(4, machine.Pin.IN), machine.Pin(16, machine.Pin.IN)
+        enc = Encoder(a, b, quadrature=quadrature)
+        enc.way = -1
+        for pin, level in ((b, 1), (a, 1), (b, 0), (a, 0)):   # backwards one cycle
+            set_level(pin, level)
+        assert enc.count() == (4 if quadrature else 2), enc.count()
+        for pin, level in ((a, 1), (b, 1), (a, 0), (b, 0)):   # forwards one cycle: back where it started
+            set_level(pin, level)
+        assert enc.count() == 0
+    single = machine.Pin(14, machine.Pin.IN)
+    enc = Encoder(single)
+    enc.way = -1
+    for level in (1, 0, 1):
+        set_level(single, level)
+    assert enc.count() == 3
+
+
 try:
     from time import ticks_add
     TICKS_PERIOD = ticks_add(0, -1) + 1      # 2^30 on the ESP8266; wider on a 64-bit port

@@ -65,10 +65,11 @@ class CommandWriter:
             limit_mm = eoa_mm - report["odo_mm"] if safe_m is None else safe_m * 1000.0
             state.limit_s = state.frame.wrap(est.s_m + limit_mm / 1000.0)
         # the command's fields after boot and seq, in the table's order (Command: sid, rseq, v_mmps, eoa_mm, ttl_ms,
-        # acc, dec, stop_mm, rpt_ms, odo_mm_per_m), as a tuple: a zone builds one for every answer it makes
+        # acc, dec, stop_mm, rpt_ms, odo_mm_per_m, dir), as a tuple: a zone builds one for every answer it makes
         rest = (self.session_id, report["seq"], int(max(0.0, v_cap_mps) * 1000), eoa_mm, int(self.params.ttl_s * 1000),
                 max(1, int(acc_mps2 * 1000)), max(1, int(dec_mps2 * 1000)), stop_mm, rpt_ms,
-                max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))))   # floored
+                max(wire.ODO_MM_PER_M_MIN, min(wire.ODO_MM_PER_M_MAX, int(scale_low * 1000.0))),   # floored
+                state.travel_dir)
         if held is not None and held[2:] == rest and held.boot == report["boot"]:
             # the board holds this very command (same report, so the same expiry): sending it again changes nothing
             return

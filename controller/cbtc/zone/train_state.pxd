@@ -7,7 +7,7 @@ cdef class TrainState:
     cdef public object setup, train_id, estimator, rank, on_change, clock, frame
     cdef public object report, report_recv_s, report_t_s, boots, next_stop, leaving
     cdef public object dwell_until_s, odo_moved, still_since_s, dwells, limit_s, safe_m
-    cdef public object limited_by, eoa_mm, cmd_seq, command, reports_rejected, last_reject
+    cdef public object limited_by, eoa_mm, travel_dir, cmd_seq, command, reports_rejected, last_reject
     cdef public object stop_overruns, restarts, answered_s, fast_until_s, fast_need_m, leader_data_t_s
     cdef public object sigma_m, authority, mode, rng_gap, gap_alarm, gap_alarms
     cdef public object deaf_since_s, encoder_failed, encoder_failures, odometer_jumps, measurements_dropped, failures
