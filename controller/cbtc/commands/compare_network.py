@@ -54,6 +54,7 @@ def run_network(args, base, title) -> int:
     systems = result["systems"]
     print(f"{title}, seed {base.seed}")
     print(format_table([systems[FIXED_BLOCK], systems[MOVING_BLOCK]], COLUMNS))
-    print(f"moving block vs fixed block: {result['trains_per_hour_gain_pct']:+} % trains per hour (fixed blocks: a "
+    gain = result["trains_per_hour_gain_pct"]
+    print(f"moving block vs fixed block: {'n/a' if gain is None else f'{gain:+}'} % trains per hour (fixed blocks: a "
           f"signal at every switch's toe and heels and on plain track every {BLOCK_M:g} m at most)")
     return 0

@@ -5,8 +5,10 @@ network is read, checked, listed and drawn, and its routes flatten into paths (c
 """
 
 from dataclasses import dataclass
+from math import cos, sin
 
 from cbtc.errors import LayoutError
+from cbtc.railway.geometry import Path
 from cbtc.railway.layout import Block, Layout, Station, Tag
 
 BLOCK_M = 0.8   # the fixed-block baseline's longest block on plain track: about a platform (a train, its margin)
@@ -72,16 +74,16 @@ class NetworkLayout:
         raise LayoutError(f"{self.source}: no station {name!r}; stations are {[st.name for st in self.stations]}")
 
 
-def route_layout(network, steps, name=None) -> Layout:
+def route_layout(network, steps, name=None, stops=None) -> Layout:
     """The single-path Layout a train on the route `steps` runs on: the route flattened into one path (a loop when it
-    comes round), the stations on its sections at their stop points for the way the route runs them and the tags at
-    their route coordinates, the fixed blocks of section_blocks (signals at the switches' toes and heels), the
-    network's IPS frame. Positions convert back with Route.locate."""
+    comes round), the stations on its sections (those named in `stops`, when given) at their stop points for the way
+    the route runs them and the tags at their route coordinates, the fixed blocks of section_blocks (signals at the
+    switches' toes and heels), the network's IPS frame. Positions convert back with Route.locate."""
     route = network.graph.route(steps)
     path = route.path()
     direction = dict(route.steps)
     stations = [Station(st.name, route.s_of(st.section, st.stop_m(direction[st.section])), st.window_m)
-                for st in network.stations if st.section in direction]
+                for st in network.stations if st.section in direction and (stops is None or st.name in stops)]
     tags = [Tag(t.uid, route.s_of(t.section, t.offset_m)) for t in network.tags
             if route.s_of(t.section, t.offset_m) is not None]
     if route.closed:
@@ -97,6 +99,19 @@ def route_layout(network, steps, name=None) -> Layout:
             start += hi - lo
     label = name or f"{network.name}:{'+'.join(s for s, _f in route.steps)}"
     return Layout(label, network.source, path, stations, tags, blocks, network.ips)
+
+
+def sensor_frame(frame, back_m) -> Layout:
+    """Where the sensors of a train whose head is at `s_m` on `frame` read when they ride `back_m` behind its head
+    (a train running the other end first: its IPS beacon and RFID reader trail): the same coordinates, the geometry
+    and tags shifted forward by `back_m` (a straight of that length leads into the path's start)."""
+    path = frame.path
+    x, y, h = path.start_pose
+    shifted = Path((("straight", back_m),) + tuple(path.segments), x - back_m * cos(h), y - back_m * sin(h), h)
+    return Layout(f"{frame.name} (sensors {back_m:.3f} m behind the head)", frame.source, shifted,
+                  [Station(st.name, st.s_m + back_m, st.window_m) for st in frame.stations],
+                  [Tag(t.uid, t.s_m + back_m) for t in frame.tags],
+                  [Block(b.name, b.start_m + back_m, b.end_m + back_m) for b in frame.blocks], frame.ips)
 
 
 def refuse_network(layout, what):

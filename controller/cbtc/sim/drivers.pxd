@@ -6,7 +6,7 @@ cimport cython
 cdef class SimEncoder:
     cdef dict __dict__
     cdef object __weakref__
-    cdef public object _profile, _rng, signed, distance_m, scale_fault, _since_edge_s, age_us
+    cdef public object _profile, _rng, signed, distance_m, scale_fault, _since_edge_s, age_us, way, cab
 
 cdef class SimIps:
     cdef dict __dict__

@@ -27,6 +27,8 @@ class SimEncoder:
         self.signed = profile.encoder_channels == 2
         self.distance_m = 0.0  # what the wheel has rolled (with errors), not what the train travelled
         self.scale_fault = 1.0  # fault injection: counts run this many times too fast (1.0: healthy)
+        self.way = 1            # the board's way of travel (it sets -1 running backwards: two channels count up)
+        self.cab = 1            # which end of the train leads on its frame (-1: the wheel turns backwards)
         self._since_edge_s = 0.0
         self.age_us = 0
 
@@ -40,7 +42,7 @@ class SimEncoder:
         slip = self._rng.normal(0.0, p.encoder_slip_sigma) if p.encoder_slip_sigma > 0 else 0.0
         factor = (1.0 + p.encoder_scale_error + slip) * self.scale_fault
         # counts run down (two channels, backwards) as up on the mirrored distance: one edge timing for both
-        way = -1.0 if ds_m < 0.0 and self.signed else 1.0
+        way = -1.0 if self.signed and (ds_m < 0.0) != (self.cab * self.way < 0) else 1.0
         before = self.distance_m * way
         after = before + abs(ds_m) * factor
         self.distance_m = after * way
@@ -76,6 +78,10 @@ class SimIps:
         self.frames_ok = 0
         self.unplugged = False
         self.offset_m = 0.0     # fault injection: fixes placed this far ahead along the track (0.0: healthy)
+
+    def use_layout(self, layout) -> None:
+        """Sample on `layout` from now (a train that reverses: its beacon trails its head)."""
+        self._layout = layout
 
     def sample(self, now_ms: int, s_m: float) -> None:
         """Called by the virtual train every loop with the true head position; samples when a fix is due."""
@@ -133,6 +139,14 @@ class SimRfid:
         self.wrong_tag = 0.0    # fault injection: share of reads that return another tag of the layout
         self.data = None
         self._s_m = 0.0
+
+    def use_layout(self, layout) -> None:
+        """Read the tags of `layout` from now (a train that reverses: its reader trails its head)."""
+        self._layout = layout
+        self._inside = {}
+        self._images = {tag.uid: balise.image(i + 1, tag.s_m) for i, tag in enumerate(layout.tags)}
+        self._tag_s_m = [tag.s_m for tag in layout.tags]
+        self._tag_index = {tag.uid: i for i, tag in enumerate(layout.tags)}
 
     def sense(self, s_m: float) -> None:
         """The virtual train tells the reader where it is (true head position, m)."""

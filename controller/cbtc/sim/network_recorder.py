@@ -17,6 +17,13 @@ from cbtc.sim.network_truth import collisions
 from cbtc.sim.recorder import board_granted_m
 
 STRANDED_S = 20.0
+
+
+def rounds(train):
+    """The rounds a simulated train has made of its itinerary: laps of a closed one, of its legs on a line."""
+    if train.legs:
+        return train.turns // len(train.legs)
+    return int(train.travelled_m // train.route.length_m) if train.route.closed else 0
 GRACE_S = 0.5   # an authority over a switch whose detection is lost is a violation once the zone has had this long
 #                 to withdraw it (a cycle and a command's way, with room to spare)
 
@@ -44,6 +51,8 @@ class NetworkRecorder:
         # a common point: the start of a section every itinerary runs, the first such in the layout's order
         common = set.intersection(*[{s for s, _f in t.route.steps} for t in sim.trains])
         self.mark = next((s for s in self.graph.sections if s in common and not self.graph.sections[s].piece), None)
+        if any(t.legs for t in sim.trains):
+            self.mark = None   # trains that reverse run each section both ways: no overtake is counted
         self._mark_s = [None if self.mark is None else t.route.s_of(self.mark, 0.0 if dict(t.route.steps)[self.mark]
                                                                     else self.graph.sections[self.mark].length_m)
                         for t in sim.trains]
@@ -141,7 +150,7 @@ class NetworkRecorder:
                 "train": train.train_id,
                 "plan": list(plan),
                 "plan_completed": made >= len(plan),
-                "laps": int(train.travelled_m // train.route.length_m) if train.route.closed else 0,
+                "laps": rounds(train),
                 "mean_lap_s": None,
                 "mean_gap_m": None,
                 "min_gap_m": None,

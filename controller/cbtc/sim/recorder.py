@@ -359,7 +359,7 @@ def board_granted_m(train, now_s):
     """In truth, how far ahead of its head the authority `train`'s board holds reaches, or None while it holds no
     valid one: odometer mm to true m at the rate the wheel counts now (its error, and a slip or spin fault)."""
     obu = train.obu
-    if not obu.command_valid(train.board_ms(now_s)):
-        return None
+    if not obu.command_valid(train.board_ms(now_s)) or obu.way != train.cab:
+        return None   # none, or the board has just turned standing and its authority lies the way truth turns next
     counts_per_true_m = (1.0 + train.profile.encoder_scale_error) * train.encoder.scale_fault
     return (obu.eoa_mm - obu.odo_mm) / 1000.0 / counts_per_true_m

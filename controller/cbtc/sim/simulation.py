@@ -57,6 +57,10 @@ class Simulation:
                                  spec.profile, spec.s0_m, client, rng, offset_ms, obu_overrides=config.obu_overrides,
                                  ranging=self._ranging(index))
             train.route = spec.route   # on a network: the itinerary it runs (its frame's Route)
+            if spec.legs:              # on a line: the legs it reverses between, its sensors on the first's
+                train.legs = spec.legs
+                train.ips.use_layout(spec.legs[0].sensors)
+                train.rfid.use_layout(spec.legs[0].sensors)
             self.trains.append(train)
         if config.declare_start:
             for spec in config.trains:   # from truth, as an operator would at the start of a run (declare_start)

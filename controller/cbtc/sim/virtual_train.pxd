@@ -7,5 +7,5 @@ cdef class VirtualTrain:
     cdef public object v_mps, a_mps2, clock_offset_ms, encoder, ips, rfid, train_line
     cdef public object motor, _key, _config, _ranging, boots, obu
     cdef public object _last_s, _now_s, frozen, stopped_dead, _rollback_m, _rollback_mps
-    cdef public object _reverse_m, _back_v_mps
+    cdef public object _reverse_m, _back_v_mps, route, legs, leg, cab, turns
 

@@ -11,6 +11,7 @@ import hashlib
 from cbtc.firmware import obu as obu_module
 from cbtc.protocol import fast_wire, wire
 from cbtc.railway import physics
+from cbtc.railway.legs import turned_head_s
 from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid, SimTrainLine
 
 
@@ -50,6 +51,11 @@ class VirtualTrain:
         self._rollback_mps = 0.0
         self._reverse_m = 0.0      # fault injection: still to run backwards under the motor's drive (wired reversed)
         self._back_v_mps = 0.0     # speed backwards (m/s, >= 0; the forward speed is v_mps, one of the two is 0)
+        self.route = None          # on a network: the Route of its frame
+        self.legs = None           # on a line it reverses on: its legs (cbtc.railway.legs), `leg` the one it runs
+        self.leg = 0
+        self.cab = 1               # which end leads on its frame: 1 the end that led at the start, -1 the other
+        self.turns = 0             # times it reversed
         client.subscribe(wire.topic_command(train_id), self._on_command)
         client.on_connect = self._on_connect
 
@@ -82,6 +88,7 @@ class VirtualTrain:
     def reboot(self, now_s: float):
         """The board restarts at `now_s`: a new boot id, the odometer from zero, the board's clock from zero."""
         self.encoder.distance_m = 0.0
+        self.encoder.way = 1     # its encoder driver starts afresh: travel is the train's forward
         self.clock_offset_ms = -int(round(now_s * 1000))
         self.ips.restart()
         self.obu = self._boot()
@@ -117,9 +124,27 @@ class VirtualTrain:
         self._rollback_m, self._rollback_mps = distance_m, v_mps
 
     @property
+    def drive_pct(self) -> int:
+        """The motor's duty the way the train runs on its frame (negative: driven the other way)."""
+        return self.motor.duty_pct * self.cab
+
+    def _turn(self) -> None:
+        """Standing, its board turned: it runs the other end first, on its next leg (the head where the tail
+        was); its sensors stay on the end they are fitted to, and read on the leg's `sensors` frame."""
+        old = self.legs[self.leg]
+        self.leg = (self.leg + 1) % len(self.legs)
+        self.turns += 1
+        new = self.legs[self.leg]
+        self.s0_m = turned_head_s(old, new, self.s0_m + self.travelled_m, self.length_m) - self.travelled_m
+        self.layout, self.route = new.frame, new.route
+        self.cab = self.encoder.cab = -1 if new.backwards else 1
+        self.ips.use_layout(new.sensors)
+        self.rfid.use_layout(new.sensors)
+
+    @property
     def rolling_back(self) -> bool:
         """A roll is left to go and the train stands undriven: it rolls back now."""
-        return self._rollback_m > 1e-9 and self.v_mps == 0.0 and self.motor.duty_pct <= 0
+        return self._rollback_m > 1e-9 and self.v_mps == 0.0 and self.drive_pct <= 0
 
     @property
     def rollback_left_m(self) -> float:
@@ -145,10 +170,10 @@ class VirtualTrain:
         p, motor = self.profile, self.motor
         u = self.v_mps - self._back_v_mps
         way = 1.0 if u > 0 else -1.0 if u < 0 else 0.0
-        if motor.mode != "drive" or motor.duty_pct <= 0:
+        if motor.mode != "drive" or self.drive_pct <= 0:
             a = -way * (p.beta_e_mps2 if motor.mode == "brake" else p.friction_mps2)
         else:
-            target = motor.duty_pct / 100.0 * p.v_noload_mps * (-1.0 if self._reverse_m > 1e-9 else 1.0)
+            target = self.drive_pct / 100.0 * p.v_noload_mps * (-1.0 if self._reverse_m > 1e-9 else 1.0)
             drive = (target - u) / p.motor_tau_s
             if way == 0.0 and abs(drive) <= p.friction_mps2:
                 a = 0.0
@@ -158,7 +183,7 @@ class VirtualTrain:
                 if a * (way or a) > 0:   # speeding up (either way): the traction limit
                     a = max(-p.accel_max_mps2, min(p.accel_max_mps2, a))
         u_next = u + a * dt_s
-        if way != 0.0 and u_next * way < 0.0 and (motor.mode != "drive" or motor.duty_pct <= 0):
+        if way != 0.0 and u_next * way < 0.0 and (motor.mode != "drive" or self.drive_pct <= 0):
             ds_m = 0.5 * u * (u / -a)   # brakes (or coasts) to a stand inside the step
             u_next = 0.0
         else:
@@ -174,6 +199,8 @@ class VirtualTrain:
         dt_s = 0.0 if self._last_s is None else now_s - self._last_s
         self._last_s = now_s
         self._now_s = now_s
+        if self.legs is not None and self.v_mps == 0.0 and self.encoder.way != self.cab and not self.reversing:
+            self._turn()   # its board turned, standing (it told its encoder so): the other end leads now
         if dt_s > 0 and self.reversing and not self.stopped_dead:
             self._reverse_step(dt_s)
         elif dt_s > 0 and self.rolling_back:
@@ -181,7 +208,7 @@ class VirtualTrain:
         elif dt_s > 0 and not self.stopped_dead:
             s_before, v_before = self.travelled_m, self.v_mps
             self.travelled_m, self.v_mps, self.a_mps2 = physics.step(
-                self.travelled_m, self.v_mps, self.motor.duty_pct, self.motor.mode, dt_s, self.profile)
+                self.travelled_m, self.v_mps, self.drive_pct, self.motor.mode, dt_s, self.profile)
             self.encoder.advance(self.travelled_m - s_before, dt_s, v_before, self.a_mps2)
         elif dt_s > 0:
             self.encoder.advance(0.0, dt_s)

@@ -21,6 +21,8 @@ class TrainSpec:
     dwell_s: tuple = None            # (low, high) s at each stop; None: the scenario's
     frame: object = None             # on a track network: the path Layout of its itinerary (s0_m is on it)
     route: object = None             # ... and the itinerary's Route
+    legs: tuple = None               # ... or, on a line it reverses on, the legs it runs (cbtc.railway.legs), the first
+    #                                  the frame and route above
 
 
 @dataclass

@@ -78,7 +78,7 @@ class ZoneController:
         self.unknown_reports = 0
         self.invalid_reports = 0
         self.swept = SweptTrack(layout)   # the track vouched for; the rest is occupied (cbtc.zone.swept)
-        self.network = network_routes(layout, self.trains, self.params, policy)   # a network's interlocking, else None
+        self.network = network_routes(layout, self.trains, self.params, policy, self.estimators)   # else None
         self.watch = ObstacleWatch(None if self.network else layout,
                                    [st.setup.profile for st in self.trains.values()], self.params,
                                    self.refusals)   # what stands on the track and is no train of the zone
@@ -397,4 +397,4 @@ class ZoneController:
         start its estimate again from nothing."""
         state = self.state_of(train_id)
         state.setup.profile = profile
-        state.relocate(type(state.estimator)(state.frame, profile))
+        state.relocate(type(state.estimator)(state.sensor_frame, profile))

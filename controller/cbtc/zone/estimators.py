@@ -22,7 +22,7 @@ class Estimators:
 
     def fresh(self, state):
         """A new estimator for `state`'s train, knowing nothing."""
-        return self.factory(state.frame, state.setup.profile)
+        return self.factory(state.sensor_frame, state.setup.profile)
 
     def feed(self, state, report, previous, payload, recv_s):
         """Hand an accepted report to the train's estimator, unless its encoder failed or its odometer jumped (then

@@ -61,7 +61,7 @@ def build_zone(config: ScenarioConfig, keys: dict, client, now_fn, zone_id: str 
                report_budget_hz: float = None) -> ZoneController:
     """The ZoneController of `config`'s trains on `client`, with keys {train_id: key}, reading time from `now_fn`."""
     setups = [TrainSetup(spec.train_id, keys[spec.train_id], spec.profile, tuple(spec.stops),
-                         spec.dwell_s or config.dwell_s, spec.frame, spec.route)
+                         spec.dwell_s or config.dwell_s, spec.frame, spec.route, spec.legs)
               for spec in config.trains]
     return ZoneController(config.layout, setups, client, now_fn, make_policy(config), config.params,
                           make_estimator_factory(config.estimator), config.cycle_s, zone_id=zone_id,

@@ -1,9 +1,11 @@
 """A queue of trains on a track network: each with a plan over the layout's stations and its itinerary, all put down
-one behind the other on the network's longest plain section, the front one first."""
+one behind the other on the network's longest plain section, the front one first; on a line, trains reverse at its
+ends."""
 
 from cbtc.authority.rules import AuthorityParams
 from cbtc.errors import ConfigError
 from cbtc.railway.itinerary import default_plans, itinerary
+from cbtc.railway.legs import legs
 from cbtc.railway.network_layout import route_layout
 from cbtc.railway.train_profile import TrainProfile
 from cbtc.zone.config import ScenarioConfig, TrainSpec
@@ -11,20 +13,18 @@ from cbtc.zone.config import ScenarioConfig, TrainSpec
 
 def network_queue(network, n_trains, seed=0, duration_s=300.0, **overrides) -> ScenarioConfig:
     """`n_trains` trains on `network`, train k with the k-th of `default_plans`, spread along its longest section that
-    is no switch or crossing (running it forwards); ConfigError when they do not fit there."""
-    profile = TrainProfile(tail_beacon=1)
+    is no switch or crossing (running it forwards); on a line they reverse at its ends (cbtc.railway.legs).
+    ConfigError when they do not fit there."""
     params = overrides.get("params", AuthorityParams())
     graph = network.graph
     plain = [s for s in graph.sections.values() if not s.piece]
     if not plain:
         raise ConfigError(f"{network.source}: no section outside a switch or crossing to put trains on")
     start = max(plain, key=lambda s: (s.length_m, s.name))
-    first = itinerary(network, (start.name, True), default_plans(network, (start.name, True), 1)[0])
-    if not graph.route(first).closed:
-        raise ConfigError(f"{network.source}: layout {network.name} is a track network whose trains cannot come "
-                          f"round from section {start.name} (a line: they would reverse at its ends, which "
-                          "simulated runs do not do yet); run a network with a loop, such as lego_passing_loop "
-                          "or lego_figure_eight (cbtc layout list)")
+    step = (start.name, True)
+    # a train that reverses runs either end first: no tail beacon, which would lead on every other leg
+    line = not graph.route(itinerary(network, step, default_plans(network, step, 1)[0])).closed
+    profile = TrainProfile(tail_beacon=0 if line else 1)
     need_m = profile.length_m + params.margin_m + 0.05
     if n_trains < 1 or n_trains * need_m > start.length_m - 0.05:
         raise ConfigError(f"{n_trains} trains do not fit on section {start.name} of {network.name} "
@@ -32,11 +32,17 @@ def network_queue(network, n_trains, seed=0, duration_s=300.0, **overrides) -> S
                           f"{int((start.length_m - 0.05) // need_m)} with {need_m:.2f} m per train")
     spacing_m = (start.length_m - 0.05) / n_trains
     trains = []
-    for k, plan in enumerate(default_plans(network, (start.name, True), n_trains)):
+    for k, plan in enumerate(default_plans(network, step, n_trains)):
         train_id = f"T{k + 1}"
-        steps = itinerary(network, (start.name, True), plan)
+        head_m = start.length_m - 0.05 - k * spacing_m
+        if line:
+            found = legs(network, step, plan, profile.length_m, train_id)
+            first = found[0]
+            trains.append(TrainSpec(train_id, first.route.s_of(start.name, head_m), plan, profile, frame=first.frame,
+                                    route=first.route, legs=found))
+            continue
+        steps = itinerary(network, step, plan)
         route = graph.route(steps)
         frame = route_layout(network, steps, name=f"{network.name} ({train_id}'s itinerary)")
-        head_m = start.length_m - 0.05 - k * spacing_m
         trains.append(TrainSpec(train_id, route.s_of(start.name, head_m), plan, profile, frame=frame, route=route))
     return ScenarioConfig(layout=network, trains=trains, seed=seed, duration_s=duration_s, **overrides)

@@ -22,6 +22,7 @@ from cbtc.railway.ahead import look_ahead
 from cbtc.railway.geometry import forward_m
 from cbtc.railway.interlocking import Interlocking
 from cbtc.railway.network_layout import section_blocks
+from cbtc.zone.turns import Turns
 
 log = logging.getLogger("cbtc.zone")
 DEPART_S = 2.0   # a dwelling train's route is set this long before its dwell ends: a switch moves in about a second
@@ -50,6 +51,8 @@ class NetworkRoutes:
         self._rears = {}         # train -> its span from the rear-most tail to the estimated head (what releases)
         self._seen = {}          # train -> its span widened, without the way it may have run since its data
         self.heads = {}          # train -> (frame coordinate of its front-most plausible head, section, offset_m)
+        self.kept = {}           # train -> its span when it reversed, an obstacle until it is located again
+        self.turns = None        # on a line trains reverse on: cbtc.zone.turns.Turns
 
     # --- each cycle -------------------------------------------------------------------------------------------------
 
@@ -57,9 +60,15 @@ class NetworkRoutes:
         """Read every located train's span, release what lies behind each, and set each train's next sections."""
         self.spans, self.heads, self._rears, self._seen = {}, {}, {}, {}
         for st in states:
+            if self.turns is not None and self.turns.due(st, now_s):
+                self.turns.turn(st, now_s)
             span = self._span(st, now_s)
             if span is not None:
                 self.spans[st.train_id] = span
+                self.kept.pop(st.train_id, None)
+        for train, span in self.kept.items():   # a train that reversed and is not located again yet stands there
+            self.spans.setdefault(train, span)
+            self._seen.setdefault(train, span)
         # a route is released behind the rear-most tail; its head side counts only where the estimate itself is, so
         # a span whose widening reaches into a route ahead and draws back never releases that route as run off
         for route_id, _section in self.interlocking.release_behind(self._rears):
@@ -67,7 +76,7 @@ class NetworkRoutes:
             self.held[train].pop(route_id, None)
         self.interlocking.advance(self.spans, now_s)
         for st in states:
-            if st.train_id in self.spans:
+            if st.train_id in self.heads:   # located (a reversed train waiting to be located asks nothing)
                 for switch, leg in self._request(st, now_s):
                     log.info("switch %s: moving to %s for train %s", switch, leg, st.train_id)
                     if self.on_move is not None:
@@ -107,9 +116,10 @@ class NetworkRoutes:
         return here, count
 
     def _need_m(self, st, now_s):
-        """How far ahead of its head `st`'s train needs track held: its horizon; only to its next stop while it is
-        bound to stop there or dwells, until DEPART_S before its dwell ends (a route set early for a train that
-        stands holds the switches other trains need: the overtaken train would hold its exit while it dwells)."""
+        """How far ahead of its head `st`'s train needs track held: its horizon; only to its next stop (and the
+        margin its authority keeps short of what it holds) while it is bound to stop there or dwells, until DEPART_S
+        before its dwell ends (a route set early for a train that stands holds the switches other trains need: the
+        overtaken train would hold its exit while it dwells)."""
         need_m = st.horizon_m + 0.3
         frame = st.frame
         name = st.next_stop
@@ -121,7 +131,7 @@ class NetworkRoutes:
         to_stop_m = forward_m(est.s_m, frame.station(name).s_m, frame.length_m if frame.closed else None)
         if frame.closed and to_stop_m > frame.length_m - 1.0:
             to_stop_m = 0.0          # at its stop, a little past the mark
-        return min(need_m, max(0.0, to_stop_m) + 0.05)
+        return min(need_m, max(0.0, to_stop_m) + self.margin_m + 0.05)   # its authority ends the margin short
 
     def _request(self, st, now_s):
         """Ask for the itinerary's next sections while what the train holds ends within its horizon (first, the
@@ -205,6 +215,19 @@ class NetworkRoutes:
         ahead = sum(self.network.graph.sections[frame.steps[(here + k) % len(frame.steps)][0]].length_m
                     for k in range(count))
         return max(0.0, ahead - into)
+
+    def turn(self, st, route, now_s):
+        """`st`'s train reverses onto `route`: the routes it holds are released (nothing held the old way survives);
+        its span (read now, from its estimate before the turn) stays an obstacle until it is located again."""
+        train = st.train_id
+        span = self._span(st, now_s)
+        for read in (self.heads, self._rears, self._seen):
+            read.pop(train, None)
+        self.kept[train] = span or self.kept.get(train, ())
+        for route_id in [r.id for r in self.interlocking.routes.values() if r.train == train]:
+            del self.interlocking.routes[route_id]
+        self.held[train] = {}
+        self.frames[train] = route
 
     # --- per train --------------------------------------------------------------------------------------------------
 
@@ -292,10 +315,14 @@ class NetworkRoutes:
         return [other for other in states if other is not st and self.leader(other, states) is st]
 
 
-def network_routes(layout, trains, params, policy):
+def network_routes(layout, trains, params, policy, estimators):
     """The NetworkRoutes of a track network's zone (`trains`: id -> TrainState, each setup with its itinerary; a
-    `policy` that signals blocks gets a signal at every section's entry), or None on a single path."""
+    `policy` that signals blocks gets a signal at every section's entry; `estimators` make the fresh estimator of a
+    train that reverses), or None on a single path."""
     if not getattr(layout, "is_network", False):
         return None
-    return NetworkRoutes(layout, {st.train_id: st.setup.itinerary for st in trains.values()}, params.k_sigma,
-                         params.margin_m, fixed_blocks=policy.uses_blocks)
+    routes = NetworkRoutes(layout, {st.train_id: st.setup.itinerary for st in trains.values()}, params.k_sigma,
+                           params.margin_m, fixed_blocks=policy.uses_blocks)
+    if any(st.setup.legs for st in trains.values()):
+        routes.turns = Turns(routes, estimators, params.k_sigma)
+    return routes

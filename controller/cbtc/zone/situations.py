@@ -52,7 +52,11 @@ def track_spans(policy, trains, layout, k_sigma):
 def own_hold(state, blind, unswept):
     """Why `state`'s train gets no authority whatever the other trains do, or None: two boards report under its id,
     an obstacle is seen nowhere (`blind`: its name), its board brakes it for good (motor wired reversed, train line
-    open), or the network's track is not cleared (`unswept`)."""
+    open), the network's track is not cleared (`unswept`), or it is being located afresh (it has just reversed)."""
+    if not state.estimator.localized:
+        return f"held: {state.train_id} not located"
+    if state.turn_at_s is not None:
+        return "held: about to reverse at the end of its leg"
     if state.boots.twins:
         return f"held: two boards report as {state.train_id}"
     if blind is not None:

@@ -21,7 +21,7 @@ class StationStops:
 
     def stop_m(self, state, now_s):
         """Distance (m) to the next scheduled stop, or None (no stop to make now); runs the dwell clock."""
-        stops = state.setup.stops
+        stops = state.stops
         if not stops:
             return None
         est = state.newest_estimate()

@@ -4,7 +4,8 @@
 cdef class TrainState:
     cdef dict __dict__
     cdef object __weakref__
-    cdef public object setup, train_id, estimator, rank, on_change, clock, frame
+    cdef public object setup, train_id, estimator, rank, on_change, clock, frame, sensor_frame, leg, stops
+    cdef public object turn_at_s
     cdef public object report, report_recv_s, report_t_s, boots, next_stop, leaving
     cdef public object dwell_until_s, odo_moved, still_since_s, dwells, limit_s, safe_m
     cdef public object limited_by, eoa_mm, travel_dir, cmd_seq, command, reports_rejected, last_reject

@@ -22,16 +22,22 @@ class TrainSetup:
     dwell_s: tuple = (1.0, 3.0)         # dwell time drawn uniformly from this range at each stop
     frame: object = None                # on a track network, the path Layout of its itinerary the zone sees it on
     itinerary: object = None            # ... and that itinerary's Route (None on a single path: the layout's)
+    legs: tuple = None                  # ... or the legs it reverses between (cbtc.railway.legs), frame the first's
 
 
 class TrainState:
-    """The controller's picture of one train."""
+    """The controller's picture of one train.
+
+    frame_of_leg: where its sensors read (`sensor_frame`: the frame, or the frame shifted when it runs the other end
+    first), which of its legs it runs on a line it reverses on (`leg`), when it turns at the end of one (`turn_at_s`,
+    held until then: cbtc.zone.turns), and the stops of its plan on its frame (`stops`)."""
 
     def __init__(self, setup: TrainSetup, estimator, rank: int = 0, on_change=None):
         self.setup = setup
         self.train_id = setup.train_id
         self.estimator = estimator
         self.frame = None            # the path Layout the zone sees it on (its itinerary's on a network)
+        self.sensor_frame, self.leg, self.turn_at_s, self.stops = None, 0, None, setup.stops   # frame_of_leg above
         self.rank = rank             # its place in the zone's list of trains: ties in position go by it
         self.on_change = on_change   # called with this state when its position may have changed
         self.clock = BoardClock()
@@ -152,11 +158,12 @@ def train_states(setups, layout, params, estimator_factory, on_change) -> dict:
         if setup.train_id in trains:
             raise ValueError(f"zone controller: train id {setup.train_id!r} configured twice")
         frame = setup.frame or layout   # the path the zone sees this train on
-        for name in setup.stops:
+        sensors, stops = (setup.legs[0].sensors, setup.legs[0].stops) if setup.legs else (frame, setup.stops)
+        for name in stops:
             frame.station(name)  # raises LayoutError naming the known stations
-        state = TrainState(setup, estimator_factory(frame, setup.profile), rank=len(trains),
+        state = TrainState(setup, estimator_factory(sensors, setup.profile), rank=len(trains),
                            on_change=on_change)
-        state.frame = frame
+        state.frame, state.sensor_frame, state.stops = frame, sensors, stops
         state.reach_m = following_reach_m(setup.profile)
         state.horizon_m = horizon_m(setup.profile, params)
         state.track_m = frame.length_m

@@ -1,0 +1,66 @@
+"""Reversal on a line: a train at the end of a leg of its itinerary (cbtc.railway.legs) turns onto the next leg.
+
+It turns once it has stood for TURN_STILL_S within END_M of its leg's end (a terminus platform, or the buffer stop)
+with no stop left on the leg, and then HOLD_S with no authority (a board still creeps onto its last end of authority
+and would refuse a turn). Nothing it held survives the turn: its routes are released, its authority withdrawn
+(its span stays an obstacle to every other train until it is located again), and it is located afresh on the new
+leg's frame, where its tail was declared as its head's position by the zone's own estimate, covering that
+estimate's uncertainty, for the IPS or a balise to confirm. Its commands then name the new direction (`dir`), which
+its board takes standing (docs/protocol.md).
+"""
+
+import logging
+
+from cbtc.railway.legs import turned_head_s
+from cbtc.zone.stations import NO_MORE_STOPS
+
+log = logging.getLogger("cbtc.zone")
+TURN_STILL_S = 1.0   # standing this long (by the zone's clock; the board's own rule is half a second)
+HOLD_S = 0.6         # then held this long with no authority, so the board's last one lapses before it is told to turn
+END_M = 0.5          # this near its leg's end
+
+
+class Turns:
+    def __init__(self, routes, estimators, k_sigma):
+        self.routes = routes           # the zone's NetworkRoutes
+        self.estimators = estimators   # makes the fresh estimator of a turned train
+        self.k_sigma = k_sigma
+        self.count = 0
+        self._driven_s = {}            # train -> report time of its newest report that moved or drove it
+
+    def due(self, st, now_s):
+        """Whether `st`'s train has come to the end of its leg and stands there, nothing left to do on it."""
+        if not st.setup.legs or st.report is None or not st.estimator.localized:
+            return False
+        report = st.report   # standing and undriven (the board takes a turn only so) for TURN_STILL_S
+        if report["v_mmps"] or report["duty"] or st.odo_moved:
+            self._driven_s[st.train_id] = st.report_t_s
+        if st.dwell_until_s is not None or (st.stops and st.next_stop != NO_MORE_STOPS):
+            return False
+        if now_s - self._driven_s.get(st.train_id, now_s) < TURN_STILL_S or \
+                st.frame.length_m - st.newest_estimate().s_m > END_M:
+            st.turn_at_s = None
+            return False
+        if st.turn_at_s is None:
+            st.turn_at_s = now_s + HOLD_S   # held from now (situations.own_hold)
+        return now_s >= st.turn_at_s
+
+    def turn(self, st, now_s):
+        """Put `st`'s train on its next leg, standing where it is, the other way round."""
+        legs = st.setup.legs
+        old, k = legs[st.leg], (st.leg + 1) % len(legs)
+        new = legs[k]
+        est = st.newest_estimate()
+        head_s = turned_head_s(old, new, est.s_m, st.setup.profile.length_m)
+        tol_m = self.k_sigma * est.sigma_s_m + est.ahead_m + est.behind_m + 0.02
+        self.routes.turn(st, new.route, now_s)
+        st.leg, st.turn_at_s = k, None
+        st.frame, st.sensor_frame, st.stops, st.track_m = new.frame, new.sensors, new.stops, new.frame.length_m
+        st.next_stop = st.leaving = None
+        st.travel_dir = 1 if new.backwards else 0
+        estimator = self.estimators.fresh(st)
+        estimator.declare_position(head_s, tol_m)
+        st.relocate(estimator)
+        self.count += 1
+        log.info("train %s: reversed at the end of its leg, onto %s (head %.3f m, within %.3f m)", st.train_id,
+                 new.frame.name, head_s, tol_m)

@@ -1,0 +1,105 @@
+"""Trains that reverse: a line's itinerary cut into legs from buffer stop to buffer stop (cbtc.railway.legs), the
+zone turning a train at the end of each (cbtc.zone.turns) and its board turning standing, in simulation on
+lego_branch, judged by truth."""
+
+import json
+from math import hypot
+
+from cbtc.cli import main as cbtc_main
+from cbtc.layout_files import load_track
+from cbtc.railway.legs import legs, turned_head_s
+from cbtc.railway.network_layout import sensor_frame
+from cbtc.sim.simulation import Simulation
+from cbtc.zone.network_config import network_queue
+
+
+def branch_legs(plan=("middle_main", "east_1"), length_m=0.25):
+    return legs(load_track("lego_branch"), ("west_line", True), plan, length_m, "T1")
+
+
+def test_a_line_is_run_in_legs_from_buffer_stop_to_buffer_stop_the_way_back_by_the_other_loop_track():
+    net = load_track("lego_branch")
+    found = branch_legs()
+    assert len(found) == 2 and [leg.backwards for leg in found] == [False, True]
+    for leg in found:
+        last, first = leg.route.steps[-1], leg.route.steps[0]
+        assert not net.graph.next_steps(*last)                       # it ends at a buffer stop
+        assert not net.graph.next_steps(first[0], not first[1])     # and begins at one
+    out, back = ({s for s, _f in leg.route.steps} for leg in found)
+    assert "middle_main" in out and "middle_loop" in back and "middle_main" not in back
+    assert found[0].stops == ("middle_main", "east_1") and found[1].stops == ()
+    assert [st.name for st in found[0].frame.stations] == ["middle_main", "east_1"] and not found[1].frame.stations
+
+
+def test_a_turn_puts_the_head_where_the_tail_was():
+    out, back = branch_legs()
+    head_s = out.route.length_m - 0.1       # 10 cm short of the east buffer stop
+    new_s = turned_head_s(out, back, head_s, 0.25)
+    assert abs(new_s - 0.35) < 1e-9          # its tail was 35 cm from the buffer stop: the new head is there
+    assert back.route.locate(new_s)[0] == out.route.locate(head_s - 0.25)[0] == "east_1"
+
+
+def test_the_sensors_of_a_train_running_backwards_read_a_train_length_behind_its_head():
+    _out, back = branch_legs()
+    frame, shifted = back.frame, back.sensors
+    assert shifted is not frame and sensor_frame(frame, 0.25).length_m == frame.length_m + 0.25
+    for s_m in (0.5, 1.7, 3.2, frame.length_m):
+        (x, y), (xs, ys) = frame.xy_m(s_m - 0.25), shifted.xy_m(s_m)
+        assert hypot(x - xs, y - ys) < 1e-9
+    assert [t.s_m + 0.25 for t in frame.tags] == [t.s_m for t in shifted.tags]
+
+
+def _run(seconds, seed=0):
+    sim = Simulation(network_queue(load_track("lego_branch"), 1, seed=seed, duration_s=seconds))
+    worst = [0.0, 0]
+
+    def watch(now_s):
+        train, st = sim.trains[0], sim.zc.state_of("T1")
+        est = st.newest_estimate()
+        if est is not None and st.estimator.localized and train.leg == st.leg:
+            worst[0] = max(worst[0], abs(est.s_m - (train.s0_m + train.travelled_m)) - 3.0 * est.sigma_s_m)
+            if train.v_mps > 0.0 and not (train.obu.way == train.cab == (-1 if st.travel_dir else 1)):
+                worst[1] += 1
+    return sim, watch, worst
+
+
+def test_a_train_shuttles_on_a_line_reversing_at_each_end_and_truth_finds_nothing():
+    sim, watch, worst = _run(150.0)
+    t = 0.0
+    while t < 150.0:
+        t += 0.5
+        sim.scheduler.run_until(t)
+        watch(t)
+    summary = sim.recorder.summary()
+    train = sim.trains[0]
+    assert train.turns >= 6 and sim.zc.network.turns.count == train.turns
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    assert summary["plan_completed"] and summary["trains"][0]["station_stops"] >= 10
+    assert train.obu.rejected == 0 and train.obu.trips == 0       # every turn taken standing, none refused
+    assert worst[1] == 0   # wherever the zone and truth run the same leg, the board runs the way both say
+    assert worst[0] <= 0.02, worst[0]                             # truth within the estimate's 3 sigma (2 cm spare)
+
+
+def test_nothing_held_the_old_way_survives_a_turn():
+    sim, _watch, _worst = _run(60.0)
+    st, net = sim.zc.state_of("T1"), sim.zc.network
+    seen = []
+    t = 0.0
+    while t < 60.0 and not seen:
+        t += 0.02
+        turns = net.turns.count
+        sim.scheduler.run_until(t)
+        if net.turns.count > turns:
+            seen.append((st.estimator.localized, st.eoa_mm, st.limit_s, dict(net.held["T1"]),
+                         [r for r in net.interlocking.routes.values() if r.train == "T1"], st.travel_dir))
+    assert seen, "no turn in 60 s"
+    localized, eoa_mm, limit_s, held, routes, travel_dir = seen[0]
+    assert not localized and eoa_mm is None and limit_s is None and travel_dir == 1
+    assert not held and not routes                                 # its routes released...
+    assert net.spans["T1"]                                         # ...its span still an obstacle to others
+
+
+def test_cbtc_sim_runs_a_train_on_lego_branch(capsys):
+    assert cbtc_main(["sim", "--layout", "lego_branch", "--trains", "1", "--duration", "60", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["collisions"] == 0 and summary["trains"][0]["station_stops"] >= 3
