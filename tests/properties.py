@@ -50,7 +50,7 @@ command_fields = st.fixed_dictionaries({
     "v_mmps": st.integers(0, 5000), "eoa_mm": st.integers(-INT31, INT31), "ttl_ms": st.integers(1, 10000),
     "acc_mmps2": st.integers(1, 10000), "dec_mmps2": st.integers(1, 10000), "stop_mm": st.integers(-INT31, INT31),
     "rpt_ms": st.integers(0, 10000),
-    "odo_mm_per_m": st.integers(wire.ODO_MM_PER_M_MIN, wire.ODO_MM_PER_M_MAX)})
+    "odo_mm_per_m": st.integers(wire.ODO_MM_PER_M_MIN, wire.ODO_MM_PER_M_MAX), "dir": st.integers(0, 1)})
 
 
 @st.composite
@@ -77,7 +77,7 @@ def encode_command(fields):
     f = dict(fields)
     return wire_zc.encode_command(KEY, "A", f.pop("boot"), f.pop("seq"), f.pop("sid"), f.pop("rseq"), f.pop("v_mmps"),
                                f.pop("eoa_mm"), f.pop("ttl_ms"), f.pop("acc_mmps2"), f.pop("dec_mmps2"),
-                               f.pop("stop_mm"), f.pop("rpt_ms"), f.pop("odo_mm_per_m"))
+                               f.pop("stop_mm"), f.pop("rpt_ms"), f.pop("odo_mm_per_m"), f.pop("dir"))
 
 
 # --- the schema, written out independently of wire's checks ------------------------------------------------------
@@ -114,7 +114,7 @@ def report_conforms(msg):
 def command_conforms(msg):
     ints = {"boot": (1, wire.BOOT_MAX), "seq": (0, WRAP), "sid": (0, INT31), "rseq": (0, WRAP), "v_mmps": (0, 5000),
             "eoa_mm": (-INT31, INT31), "ttl_ms": (1, 10000), "acc": (1, 10000), "dec": (1, 10000),
-            "stop_mm": (-INT31, INT31), "rpt_ms": (0, 10000), "odo_mm_per_m": (500, 2000)}
+            "stop_mm": (-INT31, INT31), "rpt_ms": (0, 10000), "odo_mm_per_m": (500, 2000), "dir": (0, 1)}
     return (set(msg) == set(ints) | {"v", "k", "id"} and msg["v"] == wire.VERSION and type(msg["v"]) is int
             and msg["k"] == "cmd" and msg["id"] == "A" and all(_int_in(msg[k], *b) for k, b in ints.items()))
 
@@ -145,7 +145,8 @@ def command_round_trip(fields):
     assert msg == {"v": wire.VERSION, "k": "cmd", "id": "A", "boot": fields["boot"], "seq": fields["seq"],
                    "sid": fields["sid"], "rseq": fields["rseq"], "v_mmps": fields["v_mmps"], "eoa_mm": fields["eoa_mm"],
                    "ttl_ms": fields["ttl_ms"], "acc": fields["acc_mmps2"], "dec": fields["dec_mmps2"],
-                   "stop_mm": fields["stop_mm"], "rpt_ms": fields["rpt_ms"], "odo_mm_per_m": fields["odo_mm_per_m"]}
+                   "stop_mm": fields["stop_mm"], "rpt_ms": fields["rpt_ms"], "odo_mm_per_m": fields["odo_mm_per_m"],
+                   "dir": fields["dir"]}
 
 
 def mutated_report_is_refused_or_conforms(body):

@@ -90,11 +90,12 @@ def test_nothing_held_the_old_way_survives_a_turn():
         turns = net.turns.count
         sim.scheduler.run_until(t)
         if net.turns.count > turns:
-            seen.append((st.estimator.localized, st.eoa_mm, st.limit_s, dict(net.held["T1"]),
+            seen.append((st.estimator.localized, st.command, st.limited_by, dict(net.held["T1"]),
                          [r for r in net.interlocking.routes.values() if r.train == "T1"], st.travel_dir))
     assert seen, "no turn in 60 s"
-    localized, eoa_mm, limit_s, held, routes, travel_dir = seen[0]
-    assert not localized and eoa_mm is None and limit_s is None and travel_dir == 1
+    localized, command, why, held, routes, travel_dir = seen[0]
+    assert not localized and travel_dir == 1
+    assert command.v_mmps == 0 and command.dir == 1 and why == "held: T1 not located"   # held, told to turn
     assert not held and not routes                                 # its routes released...
     assert net.spans["T1"]                                         # ...its span still an obstacle to others
 

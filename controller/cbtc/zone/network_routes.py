@@ -157,9 +157,46 @@ class NetworkRoutes:
                 break
             if count and self.fixed_blocks and not self._can_clear(st, step, head_s, first_m):
                 break
-            if not self._set(train, step, moves):
+            if not (self._set_run(train, step, moves, head_s, first_m) if st.setup.legs else
+                    self._set(train, step, moves)):
                 break
         return moves
+
+    def _set_run(self, train, step, moves, head_s, first_m):
+        """On a line trains reverse on, set the steps from `step` to the next place a train can wait (a section with
+        a station, or its leg's end) all together or none, and only while no other train stands on that place or
+        holds a route into it, nor beyond another train on the way (`first_m` from its head at `head_s`): a train
+        never holds single track it may not leave, and never runs into a terminus track another train will come out
+        of, so no two trains meet head on between passing places."""
+        frame = self.frames[train]
+        waits = {st.section for st in self.network.stations}
+        end = step
+        while end < len(frame.steps) - 1 and frame.steps[end][0] not in waits:
+            end += 1
+        place = frame.steps[end][0]
+        unseen = [t for t in self.frames if t not in self.spans]
+        if unseen:
+            self.refused[train] = f"train {unseen[0]} is not located: it may stand on the way"
+            return False
+        if frame.starts_m[end] - head_s > first_m:
+            self.refused[train] = f"another train is on the way to section {place}, where it would wait"
+            return False
+        taken = [t for t, span in self.spans.items() if t != train and any(s == place for s, _lo, _hi in span)] + \
+            [r.train for r in self.interlocking.routes_of_section(place) if r.train != train]
+        if taken:
+            self.refused[train] = f"section {place}, where it would wait, is taken by train {taken[0]}"
+            return False
+        legs_before, set_ids, run_moves = dict(self.interlocking.switch_leg), [], []
+        for i in range(step, end + 1):
+            if not self._set(train, i, run_moves):
+                for route_id in set_ids:   # refused: the run's routes go, its switches are commanded nowhere
+                    self.interlocking.routes.pop(route_id, None)
+                    self.held[train].pop(route_id, None)
+                self.interlocking.switch_leg.update(legs_before)
+                return False
+            set_ids.append(f"{train}/{self._route_ids}")
+        moves.extend(run_moves)
+        return True
 
     def _can_clear(self, st, step, head_s, first_m):
         """Under fixed blocks, whether `st`'s train, given step `step` of its itinerary, could get clear beyond it:
