@@ -104,3 +104,22 @@ def test_cbtc_sim_runs_a_train_on_lego_branch(capsys):
     assert cbtc_main(["sim", "--layout", "lego_branch", "--trains", "1", "--duration", "60", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["collisions"] == 0 and summary["trains"][0]["station_stops"] >= 3
+
+
+def test_two_trains_share_a_line_meeting_at_its_passing_loop_without_deadlock():
+    sim = Simulation(network_queue(load_track("lego_branch"), 2, seed=0, duration_s=150.0))
+    summary = sim.run().summary()
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    assert summary["plan_completed"] and not summary["stranded"]
+    assert all(t.turns >= 4 and t.obu.rejected == 0 for t in sim.trains)
+
+
+def test_a_run_to_a_place_to_wait_is_set_whole_or_not_at_all():
+    """A run refused part way leaves no route of it locked and no switch commanded for it."""
+    sim = Simulation(network_queue(load_track("lego_branch"), 2, seed=0, duration_s=5.0))
+    sim.run()
+    net = sim.zc.network
+    for train, held in net.held.items():
+        steps = sorted(held.values())
+        assert steps == list(range(steps[0], steps[0] + len(steps))) if steps else True   # held in one piece
+    assert set(net.interlocking.routes) == {r for held in net.held.values() for r in held}

@@ -34,7 +34,7 @@ class Leg:
 
 def _cheapest(graph, origin, goal, used):
     """The steps after `origin` of the cheapest way to a step `goal` accepts, reversing at buffer stops; None."""
-    queue, best, count = [(0.0, 0, origin, ())], {origin: 0.0}, 1
+    queue, best, count = [(0.0, 0, origin, ())], {}, 1   # the origin may be the goal again, the long way round
     while queue:
         cost, _n, step, path = heapq.heappop(queue)
         if path and goal(step):
