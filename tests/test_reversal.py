@@ -119,7 +119,7 @@ def test_a_run_to_a_place_to_wait_is_set_whole_or_not_at_all():
     sim = Simulation(network_queue(load_track("lego_branch"), 2, seed=0, duration_s=5.0))
     sim.run()
     net = sim.zc.network
-    for train, held in net.held.items():
+    for held in net.held.values():
         steps = sorted(held.values())
-        assert steps == list(range(steps[0], steps[0] + len(steps))) if steps else True   # held in one piece
+        assert not steps or steps == list(range(steps[0], steps[0] + len(steps)))   # held in one piece
     assert set(net.interlocking.routes) == {r for held in net.held.values() for r in held}
