@@ -53,6 +53,7 @@ class NetworkRoutes:
         self.heads = {}          # train -> (frame coordinate of its front-most plausible head, section, offset_m)
         self.kept = {}           # train -> its span when it reversed, an obstacle until it is located again
         self.turns = None        # on a line trains reverse on: cbtc.zone.turns.Turns
+        self._waits = frozenset(st.section for st in network.stations)   # where a train on a line may wait
 
     # --- each cycle -------------------------------------------------------------------------------------------------
 
@@ -169,9 +170,8 @@ class NetworkRoutes:
         never holds single track it may not leave, and never runs into a terminus track another train will come out
         of, so no two trains meet head on between passing places."""
         frame = self.frames[train]
-        waits = {st.section for st in self.network.stations}
         end = step
-        while end < len(frame.steps) - 1 and frame.steps[end][0] not in waits:
+        while end < len(frame.steps) - 1 and frame.steps[end][0] not in self._waits:
             end += 1
         place = frame.steps[end][0]
         unseen = [t for t in self.frames if t not in self.spans]
@@ -188,13 +188,14 @@ class NetworkRoutes:
             return False
         legs_before, set_ids, run_moves = dict(self.interlocking.switch_leg), [], []
         for i in range(step, end + 1):
-            if not self._set(train, i, run_moves):
+            route_id = self._set(train, i, run_moves)
+            if route_id is None:
                 for route_id in set_ids:   # refused: the run's routes go, its switches are commanded nowhere
                     self.interlocking.routes.pop(route_id, None)
                     self.held[train].pop(route_id, None)
                 self.interlocking.switch_leg.update(legs_before)
                 return False
-            set_ids.append(f"{train}/{self._route_ids}")
+            set_ids.append(route_id)
         moves.extend(run_moves)
         return True
 
@@ -223,18 +224,18 @@ class NetworkRoutes:
         return exit_m + room_m <= first_m
 
     def _set(self, train, i, moves):
-        """Ask the interlocking for step `i` of `train`'s itinerary; True when set (its switch moves added to
-        `moves`)."""
+        """Ask the interlocking for step `i` of `train`'s itinerary; the route's id when set (its switch moves added
+        to `moves`), None when refused."""
         route_id = f"{train}/{self._route_ids + 1}"
         outcome = self.interlocking.set_route(route_id, train, (self.frames[train].steps[i],), self.spans)
         if not outcome.ok:
             self.refused[train] = outcome.reason
-            return False
+            return None
         self._route_ids += 1
         self.refused[train] = ""
         moves.extend(outcome.moves)
         self.held[train][route_id] = i
-        return True
+        return route_id
 
     def _held_end_m(self, st):
         """Distance from the train's front-most plausible head to the end of the sections held for it in a row,
