@@ -33,6 +33,21 @@ def test_the_limit_names_what_bounds_it():
     assert limit.distance_m == pytest.approx(route.length_m - 0.3) and "end of the route" in limit.reason
 
 
+def test_what_lies_between_the_rear_most_and_front_most_plausible_heads_bounds_the_limit_at_zero():
+    g = load_track("lego_passing_loop").graph
+    route = g.route([("platform_loop", True), ("W2.diverging", False), ("main", True)])
+    head_s = route.starts_m[2] + 0.1   # the front-most head past W2, the rear-most 0.5 m behind it, short of W2
+    limit = network_limit(route, head_s, "A", {}, {"W2": None}, reach_m=0.5)
+    assert limit.distance_m == 0.0 and "W2" in limit.reason
+    assert network_limit(route, head_s, "A", {}, {"W2": None}).distance_m > 0.0   # from the front-most head alone
+    spans = {"B": (("W2.diverging", 0.05, 0.1),)}   # a train between the two heads
+    limit = network_limit(route, head_s, "A", spans, {"W2": "diverging"}, reach_m=0.5)
+    assert limit.distance_m == 0.0 and "train B" in limit.reason
+    assert network_limit(route, head_s, "A", spans, {"W2": "diverging"}).distance_m > 0.0
+    limit = network_limit(route, head_s, "A", {}, {"W2": "diverging"}, reach_m=0.5)
+    assert limit.distance_m == pytest.approx(route.length_m - head_s)   # nothing between: the end, from the front
+
+
 def run(layout_name, placements, plans, seconds, faults=None, following=True, v_max=None, limit=network_limit):
     """Model trains under the interlocking and the network limit for `seconds`, switches thrown by simulated
     machines (`faults`: switch -> (fault, at_s)); returns the counts and each train's last state."""

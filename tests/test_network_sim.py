@@ -9,6 +9,7 @@ from cbtc.authority.network_limit import network_limit
 from cbtc.errors import ConfigError
 from cbtc.layout_files import load_track
 from cbtc.railway.itinerary import default_plans, itinerary
+from cbtc.sim.recorder import violations
 from cbtc.sim.runs import sim_config
 from cbtc.sim.simulation import Simulation
 
@@ -190,3 +191,19 @@ def test_a_broker_outage_on_a_network_is_ridden_out():
     summary = Simulation(config).run().summary()
     assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
     assert summary["plan_completed"]
+
+
+@pytest.mark.parametrize("layout, seed, faults", [
+    # a train's IPS 0.8 m off ahead puts its front-most head past a merge it has not reached
+    ("lego_passing_loop", 660, ["ips_offset:at_s=19.5,duration_s=4.22,offset_m=0.795,train=T2"]),
+    # a train whose odometer jumps back is located again with its head anywhere over nearly a metre
+    ("lego_figure_eight", 703, ["odometer_jump:at_s=28.7,distance_m=-0.594,train=T1"]),
+    ("lego_figure_eight", 573, ["link_duplicate:at_s=15.4,direction=both,duration_s=5.734,share=0.125,train=T3",
+                                "controller_restart:at_s=20.7,duration_s=1.478"]),
+])
+def test_the_track_ahead_is_held_from_the_rear_most_plausible_head(layout, seed, faults):
+    """Wherever between its rear-most and front-most plausible heads a train is, its authority covers only track
+    held for it: a junction between the two is not skipped (campaign runs that collided when the held track was
+    counted from the front-most head alone)."""
+    summary = Simulation(sim_config(layout, 4, seed, 40.0, fault_texts=faults)).run().summary()
+    assert violations(summary) == [] and summary["switch_violations"] == 0, summary

@@ -20,16 +20,19 @@ class NetworkLimit:
     reason: str         # what bounds it, in words
 
 
-def network_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
+def network_limit(route, head_s_m, own, spans, detected_legs, reach_m=0.0) -> NetworkLimit:
     """The end of authority of train `own` with its front-most plausible head at `head_s_m` on `route` (the steps the
-    interlocking holds for it, from the section its head is on). `spans`: every train's span, widened; `detected_legs`:
-    switch -> leg its detection reports (None while moving or lost)."""
-    ahead = look_ahead(route, head_s_m, spans, own)
-    best = NetworkLimit(ahead.end_m, "the end of the route the interlocking holds for it")
-    if ahead.trains and ahead.trains[0][1] < best.distance_m:
+    interlocking holds for it, from the section its head is on), its head anywhere up to `reach_m` behind that: what
+    lies ahead is read from the rear-most plausible head, so a switch or train between the two bounds it at 0.
+    `spans`: every train's span, widened; `detected_legs`: switch -> leg its detection reports (None while moving or
+    lost)."""
+    ahead = look_ahead(route, head_s_m - reach_m, spans, own)
+    best = NetworkLimit(max(0.0, ahead.end_m - reach_m), "the end of the route the interlocking holds for it")
+    if ahead.trains and ahead.trains[0][1] - reach_m < best.distance_m:
         train, distance = ahead.trains[0]
-        best = NetworkLimit(distance, f"the rear-most plausible tail of train {train}")
+        best = NetworkLimit(max(0.0, distance - reach_m), f"the rear-most plausible tail of train {train}")
     for switch, distance, leg in sorted(ahead.switches, key=lambda w: w[1]):   # nearest first (a loop comes round)
+        distance = max(0.0, distance - reach_m)
         detected = detected_legs.get(switch)
         if detected != leg:
             if distance < best.distance_m:
@@ -40,13 +43,13 @@ def network_limit(route, head_s_m, own, spans, detected_legs) -> NetworkLimit:
     return best
 
 
-def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_M) -> NetworkLimit:
+def fixed_block_limit(route, head_s_m, own, spans, detected_legs, block_m=BLOCK_M, reach_m=0.0) -> NetworkLimit:
     """The fixed-block baseline on a network: a signal at the entry of every block (railway.network_layout's
     section_blocks: every switch's toe and heels, and plain track cut every `block_m` at most), and a train may run up
     to the signal in front of the first block ahead that another train occupies or fouls (any part of a switch or
     crossing occupied fouls all of it; a switch or crossing whose exit block is taken counts as taken); never past
     what moving block allows either."""
-    bound = network_limit(route, head_s_m, own, spans, detected_legs)
+    bound = network_limit(route, head_s_m, own, spans, detected_legs, reach_m)
     graph = route.graph
     sections = graph.sections
     occupied = set()   # (section, block index)

@@ -6,7 +6,8 @@ itinerary's route, cbtc.railway.network_layout.route_layout). Each cycle the zon
 the network (its estimate widened by k sigma, its sensors' disagreement and, ahead, the way it can have run since its
 data: line speed for the data's age and a cycle, never past the end of the authority the zone last sent it, which its
 board enforces), releases the routes behind each train, and asks the interlocking for
-the next section of each train's itinerary while the end of what it holds lies within the train's horizon. A
+the next section of each train's itinerary while the end of what it holds lies within the train's horizon. What a
+train holds counts from its rear-most plausible head: a section between it and the front-most one is never skipped. A
 train's authority then ends at the first of: the end of what the interlocking holds for it, and the network limit
 (cbtc.authority.network_limit: another train's tail on the route or fouling a switch or crossing of it, a switch not
 detected in the route's position). The train ahead on the route, translated into the follower's frame, is the leader
@@ -51,6 +52,7 @@ class NetworkRoutes:
         self._rears = {}         # train -> its span from the rear-most tail to the estimated head (what releases)
         self._seen = {}          # train -> its span widened, without the way it may have run since its data
         self.heads = {}          # train -> (frame coordinate of its front-most plausible head, section, offset_m)
+        self.reach = {}          # train -> how far behind its front-most plausible head its head may be (m)
         self.kept = {}           # train -> its span when it reversed, an obstacle until it is located again
         self.turns = None        # on a line trains reverse on: cbtc.zone.turns.Turns
         self._waits = frozenset(st.section for st in network.stations)   # where a train on a line may wait
@@ -59,7 +61,7 @@ class NetworkRoutes:
 
     def refresh(self, states, now_s):
         """Read every located train's span, release what lies behind each, and set each train's next sections."""
-        self.spans, self.heads, self._rears, self._seen = {}, {}, {}, {}
+        self.spans, self.heads, self.reach, self._rears, self._seen = {}, {}, {}, {}, {}
         for st in states:
             if self.turns is not None and self.turns.due(st, now_s):
                 self.turns.turn(st, now_s)
@@ -101,16 +103,18 @@ class NetworkRoutes:
             front = min(front, max(head, est.s_m + max(0.0, to_limit_m) + widen))
         name, offset = frame.locate(head)
         self.heads[st.train_id] = (head, name, offset)
+        self.reach[st.train_id] = head - (est.s_m - est.behind_m - widen)   # (not its tail's doubt)
         tail = est.s_m - st.setup.profile.length_m - pic.behind_m - widen
         self._rears[st.train_id] = frame.span(tail, est.s_m)
         self._seen[st.train_id] = frame.span(tail, head)
         return frame.span(tail, front)
 
     def _chain(self, train):
-        """(the step the train's front-most head is on, how many steps from it on its routes hold in a row)."""
+        """(the step the train's rear-most plausible head is on, how many steps from it on its routes hold in a row):
+        wherever between its rear-most and front-most plausible heads the train is, the track ahead of it is held."""
         frame = self.frames[train]
         held = set(self.held[train].values())
-        here = frame.step_at(self.heads[train][0])
+        here = frame.step_at(self.heads[train][0] - self.reach[train])
         n, count = len(frame.steps), 0
         while count < n and (here + count if not frame.closed else (here + count) % n) in held:
             count += 1
@@ -154,7 +158,7 @@ class NetworkRoutes:
             if count >= n or (not frame.closed and here + count >= n):
                 break
             step = (here + count) % n
-            if count and forward_m(head_s, frame.starts_m[step], frame.length_m if frame.closed else None) > first_m:
+            if count and self._to_step_m(train, step) > first_m:
                 break
             if count and self.fixed_blocks and not self._can_clear(st, step, head_s, first_m):
                 break
@@ -220,8 +224,16 @@ class NetworkRoutes:
             cuts = section_blocks(sections[name])
             lo, hi = cuts[0] if fwd else cuts[-1]
             room_m = max(room_m, hi - lo)
-        exit_m = forward_m(head_s, frame.starts_m[end], frame.length_m if frame.closed else None)
-        return exit_m + room_m <= first_m
+        return self._to_step_m(st.train_id, end) + room_m <= first_m
+
+    def _to_step_m(self, train, step):
+        """From the train's front-most plausible head to the start of `step` of its itinerary, along it (negative
+        where the step starts behind that head, within its reach)."""
+        frame = self.frames[train]
+        head_s, reach_m = self.heads[train][0], self.reach[train]
+        if not frame.closed:
+            return frame.starts_m[step] - head_s
+        return forward_m(head_s - reach_m, frame.starts_m[step], frame.length_m) - reach_m
 
     def _set(self, train, i, moves):
         """Ask the interlocking for step `i` of `train`'s itinerary; the route's id when set (its switch moves added
@@ -238,8 +250,8 @@ class NetworkRoutes:
         return route_id
 
     def _held_end_m(self, st):
-        """Distance from the train's front-most plausible head to the end of the sections held for it in a row,
-        along its itinerary: 0 when its head is on none of them."""
+        """Distance from the train's front-most plausible head to the end of the sections held for it in a row
+        from its rear-most plausible head, along its itinerary: 0 when that row does not reach its front-most head."""
         train, frame = st.train_id, self.frames[st.train_id]
         if not self.held[train]:
             return 0.0
@@ -249,7 +261,9 @@ class NetworkRoutes:
         if count >= len(frame.steps):
             return frame.length_m
         head_s = self.heads[train][0]
-        into = (head_s % frame.length_m if frame.closed else head_s) - frame.starts_m[here]
+        back_s = head_s - self.reach[train]
+        start = frame.starts_m[here]
+        into = self.reach[train] + (forward_m(start, back_s, frame.length_m) if frame.closed else back_s - start)
         ahead = sum(self.network.graph.sections[frame.steps[(here + k) % len(frame.steps)][0]].length_m
                     for k in range(count))
         return max(0.0, ahead - into)
@@ -259,7 +273,7 @@ class NetworkRoutes:
         its span (read now, from its estimate before the turn) stays an obstacle until it is located again."""
         train = st.train_id
         span = self._span(st, now_s)
-        for read in (self.heads, self._rears, self._seen):
+        for read in (self.heads, self.reach, self._rears, self._seen):
             read.pop(train, None)
         self.kept[train] = span or self.kept.get(train, ())
         for route_id in [r.id for r in self.interlocking.routes.values() if r.train == train]:
@@ -293,14 +307,15 @@ class NetworkRoutes:
         best = NetworkLimit(held_m, f"the end of the route it holds ({why})" if why else
                             "the end of the route the interlocking holds for it")
         spans = self.spans
+        reach_m = self.reach[train]
         if self.fixed_blocks:   # no train is followed by its motion: the first occupied section's signal bounds it
-            net = fixed_block_limit(frame, head_s, train, spans, detected_legs)
+            net = fixed_block_limit(frame, head_s, train, spans, detected_legs, reach_m=reach_m)
             return net if net.distance_m < best.distance_m else best
         if leader in spans:
             sections, on_route = self.network.graph.sections, {name for name, _f in frame.steps}
             spans = dict(spans)
             spans[leader] = tuple(iv for iv in spans[leader] if sections[iv[0]].piece or iv[0] not in on_route)
-        net = network_limit(frame, head_s, train, spans, detected_legs)
+        net = network_limit(frame, head_s, train, spans, detected_legs, reach_m)
         return net if net.distance_m < best.distance_m else best
 
     def frame_spans(self, st):
