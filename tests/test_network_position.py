@@ -41,11 +41,11 @@ def test_a_moving_switch_or_one_set_against_a_trailing_move_derails_it():
 def test_a_buffer_stop_stops_it_and_it_rolls_back_over_the_track_behind():
     g = load_track("lego_branch").graph
     train = NetworkPosition(g, ("east_line", True), 0.9, 0.25)
-    train.advance(1.0, {"WB": "straight"})
-    assert train.head == ("east_1", pytest.approx(0.512), True) and not train.derailed   # against the buffer
+    train.advance(1.2, {"WB": "straight"})
+    assert train.head == ("east_1", pytest.approx(0.640), True) and not train.derailed   # against the buffer
     train.advance(-1.5, {"WB": "straight", "W2": "straight"})
-    assert train.head == ("east_line", pytest.approx(1.024 - (1.5 - 0.512 - 0.256)), True) and not train.derailed
-    assert ("east_line", pytest.approx(1.024 - (1.5 - 0.512 - 0.256) - 0.25), pytest.approx(0.292)) in train.span()
+    assert train.head == ("east_line", pytest.approx(1.024 - (1.5 - 0.640 - 0.256)), True) and not train.derailed
+    assert ("east_line", pytest.approx(1.024 - (1.5 - 0.640 - 0.256) - 0.25), pytest.approx(0.420)) in train.span()
     back = NetworkPosition(g, ("west_line", True), 0.3, 0.25)
     back.advance(-0.2, {"WA": "diverging"})
     assert back.steps[0] == ("WA.diverging", False) and not back.derailed

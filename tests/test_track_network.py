@@ -165,7 +165,7 @@ def test_open_end_without_buffer_and_ends_at_an_angle(tmp_path):
                           "buffers: [west_1.end, west_2.end, east_1.end]")
     message, path = _error(tmp_path, text)
     assert message.startswith(f"{path}:{_line_of(text, 'section: east_2')}: ")
-    assert "east_2.end at (4.096, -0.128) m is left open" in message and "under buffers" in message
+    assert "east_2.end at (4.224, -0.128) m is left open" in message and "under buffers" in message
     # a curve ending at an angle against the next piece
     angled = ("track:\n  - section: a\n    segments:\n      - {piece: straight, count: 2}\n"
               "  - section: b\n    start: {x_m: 0.256, y_m: 0.0, heading_deg: 30}\n    segments:\n"
@@ -268,10 +268,10 @@ def test_a_route_through_the_network_is_a_layout_the_zone_can_run():
                                    ("main", True)])
     assert via_loop.length_m > via_main.length_m and [st.name for st in via_loop.stations] == ["south_loop", "north"]
     line = route_layout(load_track("lego_branch"), [("west_1", False), ("WA.straight", False), ("west_line", True)])
-    assert not line.closed and line.length_m == pytest.approx(0.512 + 0.256 + 1.024)
+    assert not line.closed and line.length_m == pytest.approx(0.640 + 0.256 + 1.024)
     # run backwards, west_1's stop point is as far from the section's end as its forward one is from its start
-    assert line.station("west_1").s_m == pytest.approx(0.30)
-    assert load_track("lego_branch").station("west_1").stop_m(False) == pytest.approx(0.512 - 0.30)
+    assert line.station("west_1").s_m == pytest.approx(0.40)
+    assert load_track("lego_branch").station("west_1").stop_m(False) == pytest.approx(0.640 - 0.40)
 
 
 @pytest.mark.parametrize("policy", ["moving_block", "fixed_block"])

@@ -23,6 +23,7 @@ from cbtc.railway.ahead import look_ahead
 from cbtc.railway.geometry import forward_m
 from cbtc.railway.interlocking import Interlocking
 from cbtc.railway.network_layout import section_blocks
+from cbtc.zone.line_dispatch import LineDispatch
 from cbtc.zone.turns import Turns
 
 log = logging.getLogger("cbtc.zone")
@@ -55,6 +56,7 @@ class NetworkRoutes:
         self.reach = {}          # train -> how far behind its front-most plausible head its head may be (m)
         self.kept = {}           # train -> its span when it reversed, an obstacle until it is located again
         self.turns = None        # on a line trains reverse on: cbtc.zone.turns.Turns
+        self.dispatch = None     # ... and cbtc.zone.line_dispatch.LineDispatch, which gates each run
         self._waits = frozenset(st.section for st in network.stations)   # where a train on a line may wait
 
     # --- each cycle -------------------------------------------------------------------------------------------------
@@ -78,6 +80,9 @@ class NetworkRoutes:
             train = route_id.split("/", 1)[0]
             self.held[train].pop(route_id, None)
         self.interlocking.advance(self.spans, now_s)
+        if self.dispatch is not None and self.dispatch.at is None and all(t in self.heads for t in self.frames):
+            self.dispatch.start({st.train_id: (st.leg, self.frames[st.train_id].step_at(self.heads[st.train_id][0]),
+                                               self.heads[st.train_id][1]) for st in states})
         for st in states:
             if st.train_id in self.heads:   # located (a reversed train waiting to be located asks nothing)
                 for switch, leg in self._request(st, now_s):
@@ -145,7 +150,7 @@ class NetworkRoutes:
         train, frame = st.train_id, self.frames[st.train_id]
         n, moves = len(frame.steps), []
         if not self.held[train]:
-            touched = {s for s, _lo, _hi in self.spans[train]}
+            touched = {s for s, _lo, _hi in self._seen[train]}   # where it is, not where it may run to
             for i, (name, _fwd) in enumerate(frame.steps):
                 if name in touched and not self._set(train, i, moves):
                     return moves
@@ -182,6 +187,10 @@ class NetworkRoutes:
         if unseen:
             self.refused[train] = f"train {unseen[0]} is not located: it may stand on the way"
             return False
+        why = "" if self.dispatch is None else self.dispatch.refusal(train, place)
+        if why:
+            self.refused[train] = why
+            return False
         if frame.starts_m[end] - head_s > first_m:
             self.refused[train] = f"another train is on the way to section {place}, where it would wait"
             return False
@@ -201,6 +210,8 @@ class NetworkRoutes:
                 return False
             set_ids.append(route_id)
         moves.extend(run_moves)
+        if self.dispatch is not None:
+            self.dispatch.moved(train, place)
         return True
 
     def _can_clear(self, st, step, head_s, first_m):
@@ -378,4 +389,5 @@ def network_routes(layout, trains, params, policy, estimators):
                            params.margin_m, fixed_blocks=policy.uses_blocks)
     if any(st.setup.legs for st in trains.values()):
         routes.turns = Turns(routes, estimators, params.k_sigma)
+        routes.dispatch = LineDispatch(layout.graph, {t: st.setup.legs for t, st in trains.items()}, routes._waits)
     return routes
