@@ -29,7 +29,7 @@ def figures(capsys, argv):
 
 def test_the_plan_is_drawn_from_the_seeds_alone_and_a_longer_campaign_extends_a_shorter_one():
     args = (campaign.CLASSES, campaign.LAYOUTS, campaign.FLEET_SIZES, 60.0, 0)
-    short, long = campaign.plan(40, *args), campaign.plan(400, *args)
+    short, long = campaign.plan(40, *args), campaign.plan(800, *args)
     assert long[:40] == short and campaign.plan(40, *args) == short
     assert {spec.fault_class for spec in long} == set(campaign.CLASSES)
     assert {(spec.layout, spec.trains) for spec in long} == {
