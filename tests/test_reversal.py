@@ -160,3 +160,24 @@ def test_four_trains_share_a_line_with_two_termini_and_a_passing_loop_without_de
     assert summary["plan_completed"] and not summary["stranded"]
     assert all(t["station_stops"] >= 8 for t in summary["trains"]), summary["trains"]
     assert all(t.obu.rejected == 0 for t in sim.trains)
+
+
+def test_a_scenario_file_gives_trains_on_a_line_plans_they_run_reversing():
+    from cbtc.sim.runs import scenario_config
+    config = scenario_config("lego_branch_shuttle", duration_s=60.0)
+    assert all(spec.legs and len(spec.legs) == 2 for spec in config.trains)
+    summary = Simulation(config).run().summary()
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    assert all(t["station_stops"] >= 3 for t in summary["trains"]), summary["trains"]
+
+
+def test_a_plan_a_line_cannot_run_even_reversing_is_refused_naming_its_station():
+    from cbtc.errors import ConfigError
+    from cbtc.scenario_files import scenario_from_dict
+    train = {"id": "A", "start": {"section": "west_1", "offset_m": 0.24, "forward": False}, "stops": ["nowhere"]}
+    try:
+        scenario_from_dict({"layout": "lego_branch", "trains": [train]}, "my.yaml")
+    except ConfigError as exc:
+        assert "nowhere" in str(exc) and "my.yaml" in str(exc)
+    else:
+        raise AssertionError("a plan naming no station of the line was taken")

@@ -1,9 +1,11 @@
 """The trains of a scenario file on a track network: each starts on a section (its head's offset there, the way it
-runs it) and its stops are its plan, whose itinerary it runs (cbtc.railway.itinerary). Errors name the file, the
+runs it) and its stops are its plan, whose itinerary it runs (cbtc.railway.itinerary), or, on a line, whose legs it runs
+reversing at the buffer stops (cbtc.railway.legs). Errors name the file, the
 line, the key and the fix, as the rest of the scenario's do (cbtc.scenario_files)."""
 
 from cbtc.errors import CbtcError
 from cbtc.railway.itinerary import default_plans, itinerary
+from cbtc.railway.legs import legs
 from cbtc.railway.network_layout import route_layout
 from cbtc.sim.network_truth import collisions
 from cbtc.zone.config import TrainSpec
@@ -39,17 +41,33 @@ def network_train(r, item, where, layout, train_id, profile, dwell_s):
     elif not isinstance(stops, list) or not all(isinstance(s, str) for s in stops):
         r.fail(item, "stops", f"{where}.stops", f"must be a list of station names from "
                                                 f"{[st.name for st in layout.stations]}: the plan, in order")
+    found = None
     try:
         steps = itinerary(layout, step, stops)
     except CbtcError as exc:
-        r.fail(item, "stops", f"{where}.stops", str(exc))
-    route = layout.graph.route(steps)
+        found = _reversing(r, item, where, layout, step, stops, profile, train_id, exc)
+    route = found[0].route if found else layout.graph.route(steps)
     s0_m = route.s_of(section, offset_m)
     if not route.closed and s0_m < profile.length_m:
         r.fail(item, "start", path, f"the train's tail ({profile.length_m} m behind its head) would stand behind the "
                                     f"start of its itinerary: start it at least that far into section {section}")
-    frame = route_layout(layout, steps, name=f"{layout.name} ({train_id}'s itinerary)")
-    return TrainSpec(train_id, s0_m, tuple(stops), profile, dwell_s, frame=frame, route=route)
+    frame = found[0].frame if found else route_layout(layout, steps, name=f"{layout.name} ({train_id}'s itinerary)")
+    return TrainSpec(train_id, s0_m, tuple(stops), profile, dwell_s, frame=frame, route=route, legs=found)
+
+
+def _reversing(r, item, where, layout, step, stops, profile, train_id, exc):
+    """The legs of a plan that needs the train to reverse (cbtc.railway.legs), or the failure naming `stops`: the
+    plan's own error when it cannot be run reversing either."""
+    try:
+        found = legs(layout, step, stops, profile.length_m, train_id)
+    except CbtcError as reversing:
+        r.fail(item, "stops", f"{where}.stops", f"{exc}; reversing at the buffer stops: {reversing}")
+    if not found:
+        r.fail(item, "stops", f"{where}.stops", str(exc))
+    if profile.tail_beacon:
+        r.fail(item, "profile", f"{where}.profile", "a train that reverses runs either end first: give it "
+                                                    "tail_beacon: 0 (a tail beacon would lead on every other leg)")
+    return found
 
 
 def check_network_apart(r, data, layout, specs):
