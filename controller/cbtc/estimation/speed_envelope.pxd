@@ -12,5 +12,6 @@ cdef class SpeedEnvelope:
     cdef public object profile, motor_tol, window_s, _anchors, _last, _gain
     cdef public object _gain_tol
 
-    @cython.locals(dt_s=cython.double, v0=cython.double, excess=cython.double, anchor=list, low=tuple, high=tuple)
+    @cython.locals(dt_s=cython.double, v0=cython.double, excess=cython.double, fall_mps=cython.double,
+                   rise_mps=cython.double, anchor=list, low=tuple, high=tuple)
     cpdef observe(self, double t_s, double v_mps, duty_pct)

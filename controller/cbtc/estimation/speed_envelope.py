@@ -18,6 +18,7 @@ JUDGE_S = 0.25      # a band is judged once this old: over shorter spans the spe
 #                   changes between reports would pass for a wheel's
 MOTOR_GAP_S = 0.065  # reports further apart than this are held to traction and the brake alone
 MOVING_MPS = 0.1    # speeds from here up are steady enough to anchor and to judge (the speed measure lags below)
+SPEED_LAG_S = 0.03  # a board's measured speed lags the train's at most this: half its window and a count or two
 
 
 def ride_mps(v0_mps, dt_s, v_ss_mps, tau_s, up_mps2, down_mps2):
@@ -68,6 +69,7 @@ class SpeedEnvelope:
         if last is not None and t_s <= last[0]:
             return None
         worst = None
+        fall_mps = rise_mps = 0.0
         if last is not None:
             # a report's duty is the mean over its interval; the speed measure lags the motor by a little of the
             # interval before, so that one's duty counts too
@@ -80,6 +82,10 @@ class SpeedEnvelope:
                 low, high = self._limits(0, 100)
             else:
                 low, high = self._limits(min(duties), max(duties))
+            # the measure lags: while the speed falls it reads above the train's, while it rises below, by the
+            # change over SPEED_LAG_S at most; an anchor's band opens by that much (a train braked and driven on
+            # again must not pass for a wheel's slide)
+            fall_mps, rise_mps = _lag_mps(low, v_mps, -1.0), _lag_mps(high, v_mps, 1.0)
             for anchor in self._anchors:
                 if anchor[1] is not None:
                     v0 = anchor[1]
@@ -101,7 +107,7 @@ class SpeedEnvelope:
         self._last = (t_s, duty_pct)
         self._anchors = [a for a in self._anchors if t_s - a[0] <= self.window_s]
         if (v_mps >= MOVING_MPS or standing) and (not self._anchors or t_s - self._anchors[-1][0] >= ANCHOR_S):
-            self._anchors.append([t_s, None if standing else v_mps, v_mps])
+            self._anchors.append([t_s, None if standing else max(0.0, v_mps - fall_mps), v_mps + rise_mps])
         return worst
 
     def _limits(self, d_low_pct, d_high_pct):
@@ -117,3 +123,14 @@ class SpeedEnvelope:
                     (v_high, p.motor_tau_s, p.accel_max_mps2, p.beta_e_mps2))
         # not driven at one end at least: braked, coasting or driven somewhere in between, as hard as traction allows
         return (-p.beta_e_mps2,), (p.accel_max_mps2 if d_high_pct > 0 else 0.0,)
+
+
+def _lag_mps(limit, v_mps: float, sign: float) -> float:
+    """How far the speed can change over SPEED_LAG_S from `v_mps` the way `sign` says (-1: falling, under the slowest
+    `limit` of _limits; +1: rising, under the fastest), at the rate it would start at."""
+    if len(limit) == 1:
+        rate = limit[0]
+    else:
+        v_ss, tau_s, up, down = limit
+        rate = min(up, max(-down, (v_ss - v_mps) / tau_s))
+    return max(0.0, sign * rate) * SPEED_LAG_S

@@ -10,12 +10,11 @@ filter's newest state.
 from math import isfinite, sqrt
 
 from cbtc.estimation.motor_gain import MotorGain
-from cbtc.estimation.speed_envelope import SpeedEnvelope
+from cbtc.estimation.speed_envelope import SPEED_LAG_S, SpeedEnvelope
 from cbtc.estimation.ukf_model import K
 from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST
 
 ADHESION_MPS2 = 3.0   # no train stops faster than this (wheel adhesion; the board's _ADHESION_MMPS2)
-SPEED_LAG_S = 0.03    # a board's measured speed lags the train's at most this: half its window and a count or two
 MOVING_MPS = 0.05   # speeds from here up are steady enough for a step between two reports to tell of the wheel
 
 

@@ -149,7 +149,8 @@ class NetworkRecorder:
             trains.append({
                 "train": train.train_id,
                 "plan": list(plan),
-                "plan_completed": made >= len(plan),
+                # made every stop of its plan and still running it: a train standing for good is deadlocked
+                "plan_completed": made >= len(plan) and not stranded,
                 "laps": rounds(train),
                 "mean_lap_s": None,
                 "mean_gap_m": None,
