@@ -263,9 +263,9 @@ def _fitted(config, **changes):
 @pytest.mark.parametrize("layout,trains,seed,fault,rolled_onto", [
     # it rolled on at full drive and its board counted the roll as travel: the follower ran into it
     ("lego_oval", 5, 44, "rollback:at_s=13.3,distance_m=0.159,train=T4,v_mps=0.03", 0),
-    # it rolls 0.255 m onto the train standing behind it: no authority moves a standing train out of the way, and a
+    # it rolls 0.3 m onto the train standing behind it: no authority moves a standing train out of the way, and a
     # collision is a collision whoever moved; a one-channel board cannot tell a roll back from a push forward
-    ("lego_oval", 5, 27, "rollback:at_s=15.8,distance_m=0.255,train=T5,v_mps=0.083", 1),
+    ("lego_oval", 5, 27, "rollback:at_s=25,distance_m=0.3,train=T5,v_mps=0.083", 1),
 ])
 def test_a_leader_that_rolls_back_is_covered_and_a_roll_onto_a_standing_train_is_a_collision(
         layout, trains, seed, fault, rolled_onto):

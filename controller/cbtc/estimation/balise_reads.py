@@ -10,6 +10,7 @@ from cbtc.railway.geometry import circular_offset_m
 
 STORY_TOL_M = 0.1    # two gated balise reads in a row whose stories differ by no more (m) tell the same story
 WORN_SHARE = 0.15    # ... that a wheel this far wrong (worn, dirty, slipping: of the travel) can tell
+VOUCH_M = 0.3        # balise reads this much further apart than their spreads vouch for the wheel's scale
 
 
 class BaliseReads:
@@ -33,10 +34,11 @@ class BaliseReads:
             f.reopen_scale(3.0 * self.params.scale_sigma)
         return True
 
-    def reckon(self, f, reach, d_m, scale_sigma0):
+    def reckon(self, f, reach, d_m, scale_sigma0, vouched=None):
         """`reach` carried to odometer `d_m` by the wheel alone, at the lowest and highest scale the filter (`f`)
-        allows (3 sigma, within the band a wheel can have; `scale_sigma0`: the scale's sigma while it is not in the
-        state)."""
+        allows (3 sigma; `scale_sigma0`: the scale's sigma while it is not in the state) or the balises (`vouched`,
+        BaliseReads.vouch; until they do, the prior band), within the band a wheel can have: a scale the IPS taught
+        the filter (a biased IPS teaches a wrong one) never narrows what the balises allow."""
         if reach is None:
             return None
         low_s_m, high_s_m, d0_m, ref_d_m = reach
@@ -47,12 +49,35 @@ class BaliseReads:
             k, sd = float(f.mean[K]), sqrt(max(f.cov[K][K], 0.0))
         else:
             k, sd = 0.0, scale_sigma0
-        low = min(max(1.0 + k - SCALE_K_SIGMA * sd, WHEEL_LOWEST), WHEEL_HIGHEST)
-        high = min(max(1.0 + k + SCALE_K_SIGMA * sd, WHEEL_LOWEST), WHEEL_HIGHEST)
+        if vouched is not None and vouched[3] is not None:
+            band_low, band_high = vouched[3], vouched[4]
+        else:
+            prior = SCALE_K_SIGMA * max(self.params.scale_sigma, scale_sigma0)
+            band_low, band_high = 1.0 - prior, 1.0 + prior
+        low = min(max(min(1.0 + k - SCALE_K_SIGMA * sd, band_low), WHEEL_LOWEST), WHEEL_HIGHEST)
+        high = min(max(max(1.0 + k + SCALE_K_SIGMA * sd, band_high), WHEEL_LOWEST), WHEEL_HIGHEST)
         if run_m < 0.0:
             low, high = high, low
         wrap = self.layout.wrap
         return wrap(low_s_m + run_m / high), wrap(high_s_m + run_m / low), d_m, ref_d_m
+
+    def vouch(self, f, vouched, tag_s_m, d_m, in_field, span_s):
+        """`vouched` (FilterState.vouched; None: begin afresh) after a balise read the filter took: the first read
+        since the wheel was last in doubt stays the reference; once this one lies VOUCH_M beyond both reads' spreads
+        (3 sigma and the tag's bias each) from it, the least and most odometer metres per true metre between them."""
+        offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
+        s_m, spread_m = tag_s_m - offset_m, 3.0 * sqrt(var_m2) + self.params.tag_bias_m
+        if vouched is None:
+            return d_m, s_m, spread_m, None, None
+        d0_m, s0_m, spread0_m, low, high = vouched
+        run_m, moved_m, room_m = d_m - d0_m, s_m - s0_m, spread_m + spread0_m
+        ring_m = self.layout.loop_length_m
+        if ring_m:   # the whole laps between the reads, from the odometer's travel
+            k = float(f.mean[K]) if f.n > K else 0.0
+            moved_m += ring_m * round((run_m / (1.0 + k) - moved_m) / ring_m)
+        if run_m > 0.0 and moved_m - room_m >= VOUCH_M:
+            low, high = run_m / (moved_m + room_m), run_m / (moved_m - room_m)
+        return d0_m, s0_m, spread0_m, low, high
 
     @staticmethod
     def widen_reach(reach, by_m):

@@ -234,19 +234,19 @@ class UkfEstimator:
         f.predict_to(event.t_s)
         new = state.copy_with(None)
         if event.kind == "odo":
-            new.reach = self._reads.reckon(f, state.reach, event.data[0], self._scale_sigma0)
+            new.reach = self._reads.reckon(f, state.reach, event.data[0], self._scale_sigma0, state.vouched)
             f.update_odometer(event.data[0])
         elif event.kind == "roll":
             # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
             step_m, run_m, d_m = event.data
-            new.reach = self._reads.widen_reach(state.reach, step_m)
+            new.reach, new.vouched = self._reads.widen_reach(state.reach, step_m), None   # travel of no known sign
             f.widen_position(sqrt(step_m * (step_m + 2.0 * run_m)))
             f.hold_still(_ROLL_MPS, d_m)
         elif event.kind == "step":
             # the wheel's scale changed: re-opened, so the position widens with the travel and the IPS and balises
             # learn it again; the travel since the previous report is in doubt by the step's share
             new.speed_steps += 1
-            new.reach = self._reads.widen_reach(state.reach, event.data[0])
+            new.reach, new.vouched = self._reads.widen_reach(state.reach, event.data[0]), None
             f.widen_position(event.data[0])
             f.reopen_scale(event.data[1])
         elif event.kind == "tag":
@@ -269,12 +269,14 @@ class UkfEstimator:
             new.tags_used += 1
             new.tag_offset = new.doubt = new.pending = new.tag_story = None
             new.reach = self._reads.reach_at_tag(f, *data)
+            new.vouched = self._reads.vouch(f, state.vouched, *data)
         elif state.consensus is not None and self._reads.arbitrate(f, state.consensus, *data):
             new.tags_used += 1
             new.relocations += 1
             new.gated, new.consensus, new.innovations, new.disagree = (), None, (), None
             new.tag_offset = new.doubt = new.pending = new.tag_story = None
             new.reach = self._reads.reach_at_tag(f, *data)
+            new.vouched = self._reads.vouch(f, None, *data)   # the wheel was wrong: vouched for afresh
         elif state.pending is not None and not self._reads.within_doubt(f, state.doubt, *data):
             # a balise beyond the pending placement's own bound: nothing places the train now; it is located
             # afresh (and every train held meanwhile), not re-placed at what may be another tag misread
@@ -292,6 +294,7 @@ class UkfEstimator:
             new.doubt = self._reads.replace_at_tag(f, state.doubt, *data)
             new.pending, new.agreeing = "tag", 0
             new.reach = self._reads.reach_at_tag(f, *data)
+            new.vouched = self._reads.vouch(f, None, *data)
         else:
             # a balise the filter gates: the wheel may be wrong, or the tag; covered both ways until one is shown
             new.tags_rejected += 1

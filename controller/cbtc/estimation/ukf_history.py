@@ -31,11 +31,11 @@ class FilterState:
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
                  "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps", "doubt",
-                 "pending", "agreeing", "reach", "tag_story")
+                 "pending", "agreeing", "reach", "tag_story", "vouched")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
                  consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0,
-                 doubt=None, pending=None, agreeing=0, reach=None, tag_story=None):
+                 doubt=None, pending=None, agreeing=0, reach=None, tag_story=None, vouched=None):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -65,6 +65,10 @@ class FilterState:
         #                                bias can move (dead reckoning)
         self.tag_story = tag_story     # where the newest balise read, gated, put the train less the filter's
         #                                position (m); None once a read is taken, or when the IPS shows it wrong
+        self.vouched = vouched         # (d0_m, s0_m, spread0_m, low, high): the first balise read taken since the
+        #                                wheel was last in doubt (odometer, head, its spread) and the scale band the
+        #                                travel from it to the newest read allows (None until long enough): what the
+        #                                balises, not the IPS, say of the wheel (BaliseReads.vouch); None: no read yet
 
     def healthy(self) -> bool:
         """Its filter is finite and its covariance positive definite."""
@@ -102,4 +106,4 @@ class FilterState:
         return FilterState(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
                       self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
                       self.tag_offset, self.speed_steps, self.doubt, self.pending, self.agreeing, self.reach,
-                      self.tag_story)
+                      self.tag_story, self.vouched)

@@ -34,6 +34,7 @@ def placement(est, event):
         else:
             used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
         used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
+        used.vouched = (d_m, s_m, 3.0 * sigma_s_m + bias_m, None, None)   # the first read the wheel is vouched from
     else:
         anchors = []
         for e in est._events:

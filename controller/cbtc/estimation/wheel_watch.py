@@ -185,6 +185,12 @@ class WheelWatch:
         # a wheel reading long beyond its prior band is spinning, which stops when it will: not counted on
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
         low = 1.0 + k_m - k_sigma * sqrt(max(P[K][K], 0.0))
+        if k_sigma > 0.0 and isfinite(low):
+            # no lower than the balises allow (BaliseReads.vouch; until they do, the prior band): a scale the IPS
+            # taught the filter (a biased IPS teaches a wrong one) never stretches the odometer an authority allows
+            vouched = state.vouched
+            low = min(low, vouched[3] if vouched is not None and vouched[3] is not None
+                      else 1.0 - k_sigma * self.params.scale_sigma)
         return max(low, WHEEL_LOWEST) if isfinite(low) else low
 
     def scale_high(self, state) -> float:
