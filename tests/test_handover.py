@@ -67,3 +67,12 @@ def test_without_the_records_a_new_zone_holds_the_trains_at_restricted_speed_unt
         first.setdefault(command.train_id, command)
     assert not any(c.confirmed for c in first.values())
     assert violations(summary) == []
+
+
+def test_a_position_declared_while_the_train_runs_is_carried_on_by_its_odometer():
+    """A handed-over train runs on between its first report to the new zone (where the declaration is made) and the
+    balise read that places it: the declaration is carried by the odometer, its tolerance widened by the scale's
+    doubt, or a read 5 cm on would disagree with it and the train would wait for a second reference."""
+    from cbtc.estimation.estimate import declared_at
+    assert declared_at((0.704, 0.047, 4.174), 4.234) == pytest.approx((0.764, 0.047 + 0.05 * 0.06))
+    assert declared_at((0.704, 0.047, None), 9.0) == (0.704, 0.047)

@@ -14,6 +14,19 @@ def span_offsets_m(layout, span, s_m: float):
     return min(0.0, low_m), max(0.0, high_m)
 
 
+DECLARED_CARRY_SHARE = 0.05   # of the odometer's travel since a declaration: the doubt of its scale
+
+
+def declared_at(declared, d_m: float):
+    """(s_m, tol_m) of a declaration (s_m, tol_m, odometer m when declared, or None: the train stood) carried along by
+    the odometer to `d_m`: the train ran on since, and the tolerance widens by the scale's doubt over that run."""
+    s_m, tol_m, odo_m = declared
+    if odo_m is None:
+        return s_m, tol_m
+    run_m = d_m - odo_m
+    return s_m + run_m, tol_m + DECLARED_CARRY_SHARE * abs(run_m)
+
+
 @frozen_value
 class Estimate:
     """A train's head position and speed at controller time `t_s`, with 1-sigma uncertainties.

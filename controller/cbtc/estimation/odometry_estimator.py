@@ -8,7 +8,7 @@ drift).
 
 import math
 
-from cbtc.estimation.estimate import Estimate, span_offsets_m
+from cbtc.estimation.estimate import Estimate, declared_at, span_offsets_m
 from cbtc.estimation.fix_consensus import agreeing_anchor
 from cbtc.protocol import wire
 from cbtc.railway.balise import BaliseReader
@@ -60,10 +60,11 @@ class OdometryEstimator:
         if not self.localized:
             self._doubt_span = (low_s_m, high_s_m)
 
-    def declare_position(self, s_m: float, tol_m: float) -> None:
-        """As UkfEstimator.declare_position: an IPS placement within `tol_m` (and 3 sigma) of `s_m` is confirmed."""
+    def declare_position(self, s_m: float, tol_m: float, odo_m: float = None) -> None:
+        """As UkfEstimator.declare_position: an IPS placement within `tol_m` (and 3 sigma) of `s_m`, carried on by the
+        odometer from `odo_m`, is confirmed."""
         if not self.localized:
-            self._declared = (s_m, tol_m)
+            self._declared = (s_m, tol_m, odo_m)
 
     @property
     def confirmed(self) -> bool:
@@ -117,9 +118,10 @@ class OdometryEstimator:
                 self._var_ref_m2 = 4.0 * r_m2 / found[1]
                 self.localized = True
                 if self._declared is not None:
-                    off_m = circular_offset_m(self.layout.wrap(self._s_ref_m), self.layout.wrap(self._declared[0]),
+                    d_s_m, tol_m = declared_at(self._declared, odo_fix_mm / 1000.0)
+                    off_m = circular_offset_m(self.layout.wrap(self._s_ref_m), self.layout.wrap(d_s_m),
                                               self.layout.loop_length_m)
-                    self._tag_anchored = abs(off_m) <= self._declared[1] + 3.0 * self._var_ref_m2 ** 0.5
+                    self._tag_anchored = abs(off_m) <= tol_m + 3.0 * self._var_ref_m2 ** 0.5
                 if self._doubt_span is not None:
                     self._doubt = span_offsets_m(self.layout, self._doubt_span, self._s_ref_m)
             return

@@ -82,13 +82,13 @@ class UkfEstimator:
         state = self._newest
         return state is not None and state.doubt is not None
 
-    def declare_position(self, s_m: float, tol_m: float) -> None:
-        """An operator declares that the train's head stands within `tol_m` of `s_m` (a track position): a reference
-        of its own, independent of the sensors, for the placement that follows. A placement that agrees with it is
-        confirmed, its estimate covering the declared span until a balise is read; one that does not is pending as
-        without it. No-op once located."""
+    def declare_position(self, s_m: float, tol_m: float, odo_m: float = None) -> None:
+        """An operator declares that the train's head stands within `tol_m` of `s_m` (at odometer `odo_m`, carried on
+        by it; None: standing): a reference of its own, independent of the sensors, for the placement that follows.
+        One that agrees is confirmed, its estimate covering the declared span until a balise; one that does not is
+        pending as without it. No-op once located."""
         if not self.localized:
-            self._declared = (self.layout.wrap(s_m), tol_m)
+            self._declared = (self.layout.wrap(s_m), tol_m, odo_m)
 
     @property
     def confirmed(self) -> bool:

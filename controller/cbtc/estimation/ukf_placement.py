@@ -4,7 +4,7 @@ bias (and any doubt kept from before a fresh start) until a second, independent 
 
 from math import hypot, sqrt
 
-from cbtc.estimation.estimate import span_offsets_m
+from cbtc.estimation.estimate import declared_at, span_offsets_m
 from cbtc.estimation.track_ukf import TrackUkf
 from cbtc.estimation.ukf_history import FilterState
 from cbtc.estimation.ukf_model import initial_covariance, tag_read_model
@@ -27,7 +27,7 @@ def placement(est, event):
         offset_m, var_m2 = tag_read_model(est.noise, min(abs(v_mps), est._wheel.top_mps) * span_s, in_field)
         s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
         bias_m = est.params.tag_bias_m
-        fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m)
+        fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m, d_m)
         if fused is not None:   # a tag and the operator agree
             s_m, sigma_s_m = fused
             used = FilterState(None, tags_used=1)
@@ -48,7 +48,7 @@ def placement(est, event):
         s_m, sigma_s_m = placed[0] + d_m, placed[1]
         # fixes of one IPS may share one lasting error (multipath): the placement covers it until a balise
         bias_m = est.params.ips_bias_m
-        fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m)
+        fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m, d_m)
         if fused is not None:   # the IPS and the operator agree: both placements, fused
             s_m, sigma_s_m = fused
         low_m, high_m = (0.0, 0.0) if est._doubt_span is None else \
@@ -74,13 +74,13 @@ def placement(est, event):
     return used, filt
 
 
-def with_declared(declared, s_m, sigma_s_m, ring_m):
-    """(s_m, sigma_s_m) of the placement at `s_m` (1-sigma `sigma_s_m`) fused with `declared` ((s_m, tol_m) an operator
-    declared, its tolerance taken as 3 sigma) when the two agree within 3 sigma of both; None when they
-    do not, or nothing was declared."""
+def with_declared(declared, s_m, sigma_s_m, ring_m, d_m):
+    """(s_m, sigma_s_m) of the placement at `s_m` (1-sigma `sigma_s_m`, odometer `d_m`) fused with `declared` (what an
+    operator declared, carried to `d_m`: estimate.declared_at; its tolerance taken as 3 sigma) when the two agree
+    within 3 sigma of both; None when they do not, or nothing was declared."""
     if declared is None:
         return None
-    d_s_m, tol_m = declared
+    d_s_m, tol_m = declared_at(declared, d_m)
     d_sigma_m = max(tol_m / 3.0, 1e-4)
     off_m = circular_offset_m(d_s_m, s_m, ring_m)
     if abs(off_m) > 3.0 * hypot(sigma_s_m, d_sigma_m):

@@ -33,8 +33,8 @@ class RangedEstimator:
     def confirmed(self):
         return self._inner.confirmed
 
-    def declare_position(self, s_m, tol_m):
-        self._inner.declare_position(s_m, tol_m)
+    def declare_position(self, s_m, tol_m, odo_m=None):
+        self._inner.declare_position(s_m, tol_m, odo_m)
 
     def estimate(self, now_s):
         return self._inner.estimate(now_s)

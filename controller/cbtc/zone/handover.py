@@ -96,4 +96,4 @@ def declare_handed(state, report) -> None:
     tol_m = (3.0 * record.sigma_s_m + max(record.ahead_m, record.behind_m) + _CARRY_SHARE * abs(travelled_m)
              + _CARRY_FLOOR_M)
     if record.confirmed:
-        state.estimator.declare_position(record.s_m + travelled_m, tol_m)
+        state.estimator.declare_position(record.s_m + travelled_m, tol_m, report["odo_mm"] / 1000.0)
