@@ -44,3 +44,26 @@ def test_a_lasting_ips_bias_stays_inside_the_bounds_of_the_position(layout, trai
     uncovered_m, summary = _run(layout, trains, seed, 60.0, fault, train_id)
     assert uncovered_m <= 0.0
     assert summary["authority_overruns"] == summary["collisions"] == 0
+
+
+def test_a_train_that_turns_keeps_the_band_the_balises_vouched_for_its_wheel():
+    """Nothing it held survives a turn but its wheel, which is the same wheel: the fresh estimator on the new leg
+    takes the scale band the old one's balises vouched for, until its own do (with the prior band alone, a train
+    turned at a terminus ran its reach so wide that it stood short of the next platform's tag, for good)."""
+    from cbtc.zone.turns import Turns
+    sim = Simulation(sim_config("lego_branch", 2, 0, 40.0))
+    handed = []
+    turn = Turns.turn
+
+    def watched(self, st, now_s):
+        before = st.estimator.wheel_band
+        turn(self, st, now_s)
+        handed.append((before, st.estimator.wheel_band))
+
+    Turns.turn = watched
+    try:
+        sim.scheduler.run_until(40.0)
+    finally:
+        Turns.turn = turn
+    assert handed and all(before is not None and after == before for before, after in handed), handed
+    assert all(0.9 < low < high < 1.15 for (low, high), _ in handed), handed   # the wheel reads 1-3 % long

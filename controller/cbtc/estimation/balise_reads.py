@@ -67,8 +67,8 @@ class BaliseReads:
         (3 sigma and the tag's bias each) from it, the least and most odometer metres per true metre between them."""
         offset_m, var_m2 = tag_read_model(self.noise, float(f.mean[V]) * span_s, in_field)
         s_m, spread_m = tag_s_m - offset_m, 3.0 * sqrt(var_m2) + self.params.tag_bias_m
-        if vouched is None:
-            return d_m, s_m, spread_m, None, None
+        if vouched is None or vouched[0] is None:   # the first read; a band brought along (carry_wheel) stays
+            return (d_m, s_m, spread_m) + ((None, None) if vouched is None else vouched[3:])
         d0_m, s0_m, spread0_m, low, high = vouched
         run_m, moved_m, room_m = d_m - d0_m, s_m - s0_m, spread_m + spread0_m
         ring_m = self.layout.loop_length_m
@@ -76,7 +76,10 @@ class BaliseReads:
             k = float(f.mean[K]) if f.n > K else 0.0
             moved_m += ring_m * round((run_m / (1.0 + k) - moved_m) / ring_m)
         if run_m > 0.0 and moved_m - room_m >= VOUCH_M:
-            low, high = run_m / (moved_m + room_m), run_m / (moved_m - room_m)
+            new_low, new_high = run_m / (moved_m + room_m), run_m / (moved_m - room_m)
+            if low is not None and max(low, new_low) <= min(high, new_high):   # both bound the same wheel
+                new_low, new_high = max(low, new_low), min(high, new_high)
+            low, high = new_low, new_high
         return d0_m, s0_m, spread0_m, low, high
 
     @staticmethod

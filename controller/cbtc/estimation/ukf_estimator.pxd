@@ -14,7 +14,7 @@ cdef class UkfEstimator:
     cdef object __weakref__
     cdef public object layout, profile, params, noise, localized, balises
     cdef public object late_measurements, _clock, _events, _keys, _estimate_memo, _states
-    cdef public object _base, _doubt_span, _declared, _trimmed, _filter, _filter_holds
+    cdef public object _base, _doubt_span, _declared, _trimmed, _filter, _filter_holds, _band0
     cdef public object _scale_sigma0
     cdef public WheelWatch _wheel
     cdef public IpsAgreement _ips

@@ -1,24 +1,14 @@
 """The default position estimator: a track-constrained UKF per train on encoder, IPS and RFID
-(cbtc.estimation.track_ukf).
+(cbtc.estimation.track_ukf), with OdometryEstimator's interface (`on_report(report, board_clock)`, `estimate(now_s)`).
 
-Same interface as cbtc.estimation.odometry_estimator.OdometryEstimator: `on_report(report, board_clock)` and
-`estimate(now_s) -> Estimate | None`.
-
-Every measurement is stamped with its own time on the board's clock: the encoder at the report's `t_ms`, an IPS fix at
-its receive time minus the IPS latency (when the beacon sampled it), a tag at its read time. The filter runs on board
-time, so a better clock offset learnt later never reorders anything. Measurements are kept for `history_s` seconds in
-time order with the filter state after each; one that lands before newer ones (a late IPS fix, a report overtaken
-in transit) is inserted at its time and the newer ones are re-run from the state just before it. Dropouts need
-nothing: the next measurement predicts over the gap. A train is placed by its first balise read, or by the IPS
-only where `locate_fixes` fixes agree (one fix in a hundred is an outlier, cbtc.estimation.fix_consensus); it is
-`confirmed` once a second, independent reference agrees (a balise after the IPS; a second balise or the IPS after a
-balise). Until then the estimate covers the placement's lasting bias, and a balise the filter gates places the train
-afresh rather than being turned away.
-
-Gated IPS fixes that agree among themselves (`locate_fixes` of the last `relocate_after`) mean the sensors disagree:
-either the IPS is off (multipath) or the wheel is (slip, spin, a train lifted and put back), and nothing but a balise
-can tell which. Until they agree again the estimate covers both (`Estimate.ahead_m` / `behind_m`), and the filter
-keeps its own position; a balise read that the filter gates but that agrees with the fixes moves the position there.
+Each measurement is stamped with its own board time (the encoder at the report's `t_ms`, an IPS fix at its receive
+time less the IPS latency, a tag at its read time) and kept `history_s` in time order with the filter state after it;
+a late one is inserted at its time and the newer ones re-run, so a better clock offset never reorders anything. A
+train is placed by its first balise read, or where `locate_fixes` IPS fixes agree (cbtc.estimation.fix_consensus),
+and `confirmed` once a second, independent reference agrees; until then the estimate covers the placement's lasting
+bias, and a balise the filter gates places it afresh. Gated fixes that agree among themselves mean the sensors
+disagree (multipath, or a wheel that slipped, spun or was lifted): only a balise can tell which, and until they agree
+the estimate covers both (`Estimate.ahead_m` / `behind_m`); a gated balise agreeing with the fixes moves it there.
 """
 
 from bisect import bisect_right
@@ -67,14 +57,26 @@ class UkfEstimator:
         self._filter_holds = None    # the state whose snapshot _filter holds as it stands (no restore needed)
         self._wheel = WheelWatch(profile, self.params)   # what the board's reports say of its wheel
         self._scale_sigma0 = self.params.scale_sigma   # the scale's 1-sigma when the train is located
+        self._band0 = None           # the wheel's scale band a turned train brought (carry_wheel)
 
     def keep_doubt(self, low_s_m: float, high_s_m: float) -> None:
-        """The train's head was somewhere in [low_s_m, high_s_m] (track positions) when this estimator was started
-        afresh (its encoder failed): located by the IPS alone, the estimate covers that span too (`ahead_m` /
-        `behind_m`) until a balise read confirms the position, since fixes that disagreed with the wheel just before
-        may be the ones that are wrong. Located by a balise, it is not kept. No-op once located."""
+        """The head was in [low_s_m, high_s_m] (track positions) when this estimator was started afresh (its encoder
+        failed): located by the IPS alone, the estimate covers that span too until a balise confirms the position
+        (fixes that disagreed with the wheel may be the wrong ones). No-op once located."""
         if not self.localized:
             self._doubt_span = (low_s_m, high_s_m)
+
+    @property
+    def wheel_band(self):
+        """(low, high) odometer m per true m the balises vouch for (FilterState.vouched; None: not yet), or the one
+        handed over by carry_wheel until they do."""
+        state = self._newest
+        band = state.vouched[3:] if state is not None and state.vouched is not None else (None, None)
+        return band if band[0] is not None else self._band0
+
+    def carry_wheel(self, band) -> None:
+        """The same wheel's band (`wheel_band` of the estimator before: a train turned), until balises vouch anew."""
+        self._band0 = band
 
     @property
     def doubt_kept(self) -> bool:
@@ -118,18 +120,15 @@ class UkfEstimator:
         return self.balises.counts["unknown"]
 
     @property
-    def speed_steps(self):
-        """Reported speeds that changed faster than the train can (the wheel began or stopped slipping)."""
+    def speed_steps(self):   # reported speeds that changed faster than the train can (the wheel slipped or spun)
         return self._newest.speed_steps if self._newest else 0
 
     @property
-    def rejected_ips(self):
-        """IPS fixes the gate turned away, among those the current state rests on."""
+    def rejected_ips(self):   # IPS fixes the gate turned away, among those the current state rests on
         return self._newest.ips_rejected if self._newest else 0
 
     @property
-    def scale_error(self):
-        """The encoder scale error learnt so far (None while unlocated or when it is not estimated)."""
+    def scale_error(self):   # the encoder scale error learnt so far (None while unlocated or not estimated)
         return self._wheel.scale_error(self._newest)
 
     def odometer_per_m_low(self, k_sigma: float) -> float:

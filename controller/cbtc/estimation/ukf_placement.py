@@ -34,7 +34,7 @@ def placement(est, event):
         else:
             used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
         used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
-        used.vouched = (d_m, s_m, 3.0 * sigma_s_m + bias_m, None, None)   # the first read the wheel is vouched from
+        used.vouched = (d_m, s_m, 3.0 * sigma_s_m + bias_m) + (est._band0 or (None, None))   # vouched from here on
     else:
         anchors = []
         for e in est._events:
@@ -60,6 +60,8 @@ def placement(est, event):
             used = FilterState(None, ips_used=est.params.locate_fixes,
                                doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
         used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
+        if est._band0 is not None:   # the wheel's band, brought along by a train that turned
+            used.vouched = (None, None, None) + tuple(est._band0)
     with_scale = est._scale_sigma0 > 0
     sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
     top_mps = est._wheel.top_mps

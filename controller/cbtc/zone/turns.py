@@ -60,6 +60,8 @@ class Turns:
         st.travel_dir = 1 if new.backwards else 0
         estimator = self.estimators.fresh(st)
         estimator.declare_position(head_s, tol_m)
+        if hasattr(estimator, "carry_wheel"):   # the same wheel: its scale as the balises vouched for it
+            estimator.carry_wheel(st.estimator.wheel_band)
         st.relocate(estimator)
         self.count += 1
         log.info("train %s: reversed at the end of its leg, onto %s (head %.3f m, within %.3f m)", st.train_id,
