@@ -22,46 +22,10 @@ def placement(est, event):
     if odometer is None:   # no encoder report kept yet to place it against
         return None
     d_m, v_mps = odometer
-    if event.kind == "tag":
-        tag_s_m, d_m, in_field, span_s = event.data   # the board's speed, no faster than the motor drives
-        offset_m, var_m2 = tag_read_model(est.noise, min(abs(v_mps), est._wheel.top_mps) * span_s, in_field)
-        s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
-        bias_m = est.params.tag_bias_m
-        fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m, d_m)
-        if fused is not None:   # a tag and the operator agree
-            s_m, sigma_s_m = fused
-            used = FilterState(None, tags_used=1)
-        else:
-            used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
-        used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
-        used.vouched = (d_m, s_m, 3.0 * sigma_s_m + bias_m) + (est._band0 or (None, None))   # vouched from here on
-    else:
-        anchors = []
-        for e in est._events:
-            if e.kind == "ips":
-                anchors.append(est.layout.project(*e.data) - odometer_at(est._events, e.t_s)[0])
-            if e is event:
-                break
-        placed = est._ips.agreeing(anchors[-(2 * est.params.locate_fixes - 1):])
-        if placed is None:
-            return None
-        s_m, sigma_s_m = placed[0] + d_m, placed[1]
-        # fixes of one IPS may share one lasting error (multipath): the placement covers it until a balise
-        bias_m = est.params.ips_bias_m
-        fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m, d_m)
-        if fused is not None:   # the IPS and the operator agree: both placements, fused
-            s_m, sigma_s_m = fused
-        low_m, high_m = (0.0, 0.0) if est._doubt_span is None else \
-            span_offsets_m(est.layout, est._doubt_span, s_m)
-        if fused is not None:
-            used = FilterState(None, ips_used=est.params.locate_fixes,
-                               doubt=None if est._doubt_span is None else (low_m, high_m))
-        else:
-            used = FilterState(None, ips_used=est.params.locate_fixes,
-                               doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
-        used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
-        if est._band0 is not None:   # the wheel's band, brought along by a train that turned
-            used.vouched = (None, None, None) + tuple(est._band0)
+    placed = _at_tag(est, event, v_mps) if event.kind == "tag" else _at_fixes(est, event, d_m)
+    if placed is None:
+        return None
+    used, s_m, sigma_s_m, d_m = placed
     with_scale = est._scale_sigma0 > 0
     sigma_v_mps = 0.05 + 0.1 * abs(v_mps)
     top_mps = est._wheel.top_mps
@@ -74,6 +38,56 @@ def placement(est, event):
     filt = TrackUkf(est.layout, est.noise, x0, P0, event.t_s)
     used.snap = filt.snapshot()
     return used, filt
+
+
+def _at_tag(est, event, v_mps):
+    """(FilterState, s_m, sigma_s_m, d_m) of a placement at a tag read: pending a second reference unless the
+    operator's declared position agrees."""
+    tag_s_m, d_m, in_field, span_s = event.data   # the board's speed, no faster than the motor drives
+    offset_m, var_m2 = tag_read_model(est.noise, min(abs(v_mps), est._wheel.top_mps) * span_s, in_field)
+    s_m, sigma_s_m = tag_s_m - offset_m, sqrt(var_m2)
+    bias_m = est.params.tag_bias_m
+    fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m, d_m)
+    if fused is not None:   # a tag and the operator agree
+        s_m, sigma_s_m = fused
+        used = FilterState(None, tags_used=1)
+    else:
+        used = FilterState(None, tags_used=1, doubt=(-bias_m, bias_m), pending="tag")
+    used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + bias_m, d_m)
+    used.vouched = (d_m, s_m, 3.0 * sigma_s_m + bias_m) + (est._band0 or (None, None))   # vouched from here on
+    return used, s_m, sigma_s_m, d_m
+
+
+def _at_fixes(est, event, d_m):
+    """(FilterState, s_m, sigma_s_m, d_m) of a placement where `locate_fixes` IPS fixes up to `event` agree; None
+    while too few do."""
+    anchors = []
+    for e in est._events:
+        if e.kind == "ips":
+            anchors.append(est.layout.project(*e.data) - odometer_at(est._events, e.t_s)[0])
+        if e is event:
+            break
+    placed = est._ips.agreeing(anchors[-(2 * est.params.locate_fixes - 1):])
+    if placed is None:
+        return None
+    s_m, sigma_s_m = placed[0] + d_m, placed[1]
+    # fixes of one IPS may share one lasting error (multipath): the placement covers it until a balise
+    bias_m = est.params.ips_bias_m
+    fused = with_declared(est._declared, s_m, sigma_s_m, est.layout.loop_length_m, d_m)
+    if fused is not None:   # the IPS and the operator agree: both placements, fused
+        s_m, sigma_s_m = fused
+    low_m, high_m = (0.0, 0.0) if est._doubt_span is None else \
+        span_offsets_m(est.layout, est._doubt_span, s_m)
+    if fused is not None:
+        used = FilterState(None, ips_used=est.params.locate_fixes,
+                           doubt=None if est._doubt_span is None else (low_m, high_m))
+    else:
+        used = FilterState(None, ips_used=est.params.locate_fixes,
+                           doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
+    used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
+    if est._band0 is not None:   # the wheel's band, brought along by a train that turned
+        used.vouched = (None, None, None) + tuple(est._band0)
+    return used, s_m, sigma_s_m, d_m
 
 
 def with_declared(declared, s_m, sigma_s_m, ring_m, d_m):

@@ -159,6 +159,7 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
             basis[sent.command.seq] = (sent.leader_data_t_s, sent.sigma_m)
 
     rows = []      # one per loop tick: truth and the command B's board obeys
+    trips = []     # ... and its trip count and end of authority (odometer mm)
 
     def probe(now_s):
         unit = follower.obu
@@ -166,6 +167,7 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
         gap_m = layout.ahead_m(follower.head_s, leader.tail_s)
         rows.append((now_s, unit.cseq, (unit.eoa_mm - unit.odo_mm) / 1000.0 / wheel_per_m, leader.travelled_m,
                      follower.v_mps, gap_m))
+        trips.append((unit.trips, unit.eoa_mm))
 
     sim.zc.commands.subscribe(on_command)
     sim.scheduler.call_every(config.loop_s, probe, start_s=0.0106)
@@ -196,7 +198,22 @@ def steady_following(layout, seed=0, leader_v_mps=0.4, duration_s=60.0, settle_s
         "collisions": summary["collisions"],
         "authority_overruns": summary["authority_overruns"],
         "emergency_trips": summary["emergency_trips"],
+        # trips with no end of authority stepped back in the 0.3 s before: riding the curve itself tripped
+        "trips_riding": _trips_riding(trips, config.loop_s),
     }
+
+
+def _trips_riding(trips, loop_s, within_s=0.3):
+    """Trips of the follower (per-tick (trips, eoa_mm)) with no step back of its end of authority in the `within_s`
+    before: a bound that widened (the leader's sensors disagreeing) takes ground back and may trip a train riding its
+    service curve, as it must; a trip without one is the loop's own."""
+    ticks = max(1, int(round(within_s / loop_s)))
+    riding = 0
+    for i in range(1, len(trips)):
+        if trips[i][0] > trips[i - 1][0]:
+            back = any(trips[j][1] < trips[j - 1][1] for j in range(max(1, i - ticks), i + 1))
+            riding += (trips[i][0] - trips[i - 1][0]) if not back else 0
+    return riding
 
 
 def _overhead_budget(config, profile, basis, steady, t, cseq, eoa_ahead_m, leader_d_m, v_b, gap):

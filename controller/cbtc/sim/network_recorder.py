@@ -133,41 +133,43 @@ class NetworkRecorder:
             last[i] = k
         return counts
 
+    def _train_row(self, i, train, view, overtakes):
+        """One train's row of the summary."""
+        state = view.train(train.train_id)
+        zstate = self.sim.zc.state_of(train.train_id)
+        window = self._window[i]
+        stranded = bool(window) and window[-1][1] - window[0][1] < 0.05 and \
+            window[-1][0] - window[0][0] >= STRANDED_S - 0.1
+        made = zstate.dwells
+        plan = tuple(zstate.setup.stops)
+        return {
+            "train": train.train_id,
+            "plan": list(plan),
+            # made every stop of its plan and still running it: a train standing for good is deadlocked
+            "plan_completed": made >= len(plan) and not stranded,
+            "laps": rounds(train),
+            "mean_lap_s": None,
+            "mean_gap_m": None,
+            "min_gap_m": None,
+            "distance_m": round(train.travelled_m, 3),
+            "station_stops": state.station_stops,
+            "collisions": self.collisions[i],
+            "authority_overruns": self._overruns[i],
+            "switch_violations": self.switch_violations[i],
+            "overtakes": overtakes[i],
+            "granted_beyond_m": None if self.granted_beyond_m[i] == -inf else round(self.granted_beyond_m[i], 4),
+            "stranded": stranded,
+            "estimation_rmse_m": None,
+            "commands_rejected_onboard": train.obu.rejected,
+            "emergency_trips": train.obu.trips,
+            "reports_rejected": state.reports_rejected,
+        }
+
     def summary(self):
         sim = self.sim
         view = sim.zc.view(sim.scheduler.now_s())
         overtakes = self.overtakes()
-        trains = []
-        for i, train in enumerate(sim.trains):
-            state = view.train(train.train_id)
-            zstate = sim.zc.state_of(train.train_id)
-            window = self._window[i]
-            stranded = bool(window) and window[-1][1] - window[0][1] < 0.05 and \
-                window[-1][0] - window[0][0] >= STRANDED_S - 0.1
-            made = zstate.dwells
-            plan = tuple(zstate.setup.stops)
-            trains.append({
-                "train": train.train_id,
-                "plan": list(plan),
-                # made every stop of its plan and still running it: a train standing for good is deadlocked
-                "plan_completed": made >= len(plan) and not stranded,
-                "laps": rounds(train),
-                "mean_lap_s": None,
-                "mean_gap_m": None,
-                "min_gap_m": None,
-                "distance_m": round(train.travelled_m, 3),
-                "station_stops": state.station_stops,
-                "collisions": self.collisions[i],
-                "authority_overruns": self._overruns[i],
-                "switch_violations": self.switch_violations[i],
-                "overtakes": overtakes[i],
-                "granted_beyond_m": None if self.granted_beyond_m[i] == -inf else round(self.granted_beyond_m[i], 4),
-                "stranded": stranded,
-                "estimation_rmse_m": None,
-                "commands_rejected_onboard": train.obu.rejected,
-                "emergency_trips": train.obu.trips,
-                "reports_rejected": state.reports_rejected,
-            })
+        trains = [self._train_row(i, train, view, overtakes) for i, train in enumerate(sim.trains)]
         beyond = [b for b in self.granted_beyond_m if b > -inf]
         started = self._t_first_s is not None
         return {
