@@ -8,7 +8,7 @@ MicroPython-compatible; it goes onto no train board.
 A field is (name, kind, bounds, unit, meaning); the kinds:
   "const"  the header: bounds is the one value it may have (the kind and id are set per message)
   "id"     a train id, 1-16 characters of A-Z a-z 0-9 _ - (wire.check_train_id)
-  "int"    bounds (lo, hi), inclusive; a bool or a float is not an integer
+  "int"    bounds (lo, hi), inclusive; a bool or a float is not an integer; "int?" may be absent (read as lo)
   "choice" a string, one of bounds
   "names"  a list of strings, each one of bounds
   "list"   null or a list of integers, bounds a flat (name, lo, hi) spec (wire.check_ints); "list?" may be absent
@@ -73,6 +73,8 @@ REPORT = ("rep", (
     ("rng", "list?", RANGING, "ms, mm",
      "newest gap to the train ahead measured by train-to-train ranging (docs/source_systems.md); optional: boards "
      "without ranging leave it out"),
+    ("dir", "int?", (0, 1), "",
+     "1 while the board drives backwards (the `dir` it took last), absent forward: which way a train faces"),
 ))
 
 COMMAND = ("cmd", (

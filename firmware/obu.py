@@ -133,7 +133,7 @@ class OnboardUnit:
         cpm = cfg["counts_per_m"]
         if not isinstance(cpm, int):
             if not isinstance(cpm, float) or cpm != int(cpm):
-                raise ValueError("counts_per_m must be whole, not %r: round it (cbtc calibrate encoder)"
+                raise ValueError("counts_per_m must be whole, not %r (cbtc calibrate encoder)"
                                  % (cpm,))
             cfg = dict(cfg)
             cfg["counts_per_m"] = int(cpm)
@@ -141,8 +141,7 @@ class OnboardUnit:
         dec = cfg["dec_mmps2"]
         emergency = cfg["emergency_dec_mmps2"]
         if emergency <= dec or cfg["stop_window_mm"] < r_s * r_s * dec * emergency / (2 * (emergency - dec)):
-            raise ValueError("curves cross: need emergency_dec_mmps2 > dec_mmps2 and a longer stop_window_mm "
-                             "(docs/protocol.md)")
+            raise ValueError("curves cross: raise emergency_dec_mmps2 over dec_mmps2, or stop_window_mm")
         self.cfg = cfg
         self._report_topic = wire.topic_report(train_id)
         self._cmd_topic = wire.topic_command(train_id)
@@ -194,7 +193,7 @@ class OnboardUnit:
         try:
             cmd = self._codec.decode_command(self._key, topic, payload)
             if cmd["boot"] != self.boot_id:
-                raise wire.WireError("command of boot %d; this is boot %d (recorded before a reboot?)"
+                raise wire.WireError("command of boot %d; this is boot %d"
                                      % (cmd["boot"], self.boot_id))
             sid = cmd["sid"]
             if sid == self.sid:
@@ -209,7 +208,7 @@ class OnboardUnit:
                                      % (sid, cmd["rseq"], self.sid, self.cmd["rseq"]))
             slot = cmd["rseq"] % _HISTORY
             if self._sent_seq[slot] != cmd["rseq"]:
-                raise wire.WireError("stale command: report %d is not among our last %d"
+                raise wire.WireError("stale command: report %d not among the last %d"
                                      % (cmd["rseq"], _HISTORY))
             age_ms = wrap_diff(now_ms, self._sent_t[slot])
             if age_ms > self.cfg["max_data_age_ms"]:
@@ -636,7 +635,7 @@ class OnboardUnit:
         self._sent_t[slot] = now_ms
         payload = self._codec.encode_report(self._key, self.train_id, self.boot_id, seq, now_ms, self.odo_mm,
                                             self.v_mmps, duty_pct, self.mode, self.cseq, self.sid, self._ips_fix,
-                                            self._tags, self.faults, self._rng_report)
+                                            self._tags, self.faults, self._rng_report, self.way)
         self.seq = wrap_add(seq, 1)
         self._ips_fix = None
         if self._rng_report is not None:

@@ -236,7 +236,7 @@ def check_fields(msg, names, topic, more=()):
 # --- reports ---------------------------------------------------------------------------------------------------
 
 def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips, tags, faults,
-                  rng=None):
+                  rng=None, way=1):
     """Sealed report payload.
 
     boot: this boot's id (new_boot_id); t_ms: board uptime (ms) when sampled; odo_mm: encoder odometer (mm);
@@ -247,13 +247,15 @@ def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode
     (span_ms: the time since the reader's previous poll that answered, in which the reader entered the tag's field;
     a balise's telegram appended); faults: list of names from FAULTS (wire_zc.py); rng: None or [t_ms, gap_mm], the
     newest gap to the train ahead measured by the onboard ranging since the last report (board clock; gap from this
-    head to the leader's tail, mm).
+    head to the leader's tail, mm); way: -1 while the board drives backwards (the report's `dir` 1).
     """
     msg = {"v": VERSION, "k": "rep", "id": train_id, "boot": boot, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
            "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "csid": csid, "ips": ips, "tags": tags,
            "flt": faults}
     if rng is not None:
         msg["rng"] = rng   # absent (read as null) on boards without ranging
+    if way < 0:
+        msg["dir"] = 1     # absent while it drives forward
     return seal(key, topic_report(train_id), dumps_compact(msg).encode())
 
 

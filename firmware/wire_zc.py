@@ -69,7 +69,7 @@ def _is_hex(text, lengths):
 
 
 def check_report(msg, topic):
-    """`msg` (a report whose header and integer fields wire has checked) if its mode, ips, tags, rng and flt are
+    """`msg` (a report whose header and integer fields wire has checked) if its mode, ips, tags, rng, dir and flt are
     valid and it has no other field; WireError with the reason otherwise."""
     check_fields(msg, REPORT_INTS, topic, REPORT_OTHER)
     if msg.get("mode") not in MODES:
@@ -86,6 +86,9 @@ def check_report(msg, topic):
                             "[uid, odo_mm, t_ms, span_ms, data: 32 hex digits of the balise telegram]" % (tag, topic))
         check_ints(tag[1:4], TAG_INTS, topic, "tags")
     _null_or_ints(msg, "rng", RNG_INTS, topic, False)
+    back = msg.get("dir", 0)   # absent: forward
+    if type(back) is not int or back not in (0, 1):
+        raise WireError("field 'dir' on %s must be 0 or 1 (or absent), got %r" % (topic, back))
     faults = msg.get("flt")
     bad = not isinstance(faults, list)
     for name in [] if bad else faults:

@@ -36,9 +36,13 @@ def test_the_zones_checks_are_made_from_the_table():
 
 
 def test_the_board_writes_a_report_in_the_tables_order():
-    payload = wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], [], rng=[90, 400])
+    payload = wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], [], rng=[90, 400], way=-1)
     assert list(_body(payload)) == ["v", "k", "id"] + list(messages.names(messages.REPORT))
-    assert fast_wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], [], [90, 400]) == payload
+    assert fast_wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], [], [90, 400], -1) == payload
+    forward = wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], [])
+    assert "dir" not in _body(forward)   # absent while the board drives forward: read as 0
+    assert fast_wire.encode_report(KEY, "A", 1, 1, 100, 5, 0, 0, "run", -1, -1, None, [], []) == forward
+    assert wire_zc.decode_report(KEY, wire.topic_report("A"), payload)["dir"] == 1
 
 
 def test_the_document_shows_the_tables_as_they_are():

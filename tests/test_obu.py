@@ -217,7 +217,7 @@ def test_a_stop_window_too_short_for_the_curves_and_a_fractional_encoder_scale_a
     assert isinstance(make({"counts_per_m": 1044.0}).cfg["counts_per_m"], int)
     with pytest.raises(ValueError, match="stop_window_mm"):
         make({"stop_window_mm": 3})
-    with pytest.raises(ValueError, match="emergency_dec_mmps2 > dec_mmps2"):
+    with pytest.raises(ValueError, match="raise emergency_dec_mmps2 over dec_mmps2"):
         make({"emergency_dec_mmps2": 800})
 
 

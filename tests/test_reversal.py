@@ -181,3 +181,28 @@ def test_a_plan_a_line_cannot_run_even_reversing_is_refused_naming_its_station()
         assert "nowhere" in str(exc) and "my.yaml" in str(exc)
     else:
         raise AssertionError("a plan naming no station of the line was taken")
+
+
+def _line_run(fault, seed=868):
+    from cbtc.sim.runs import sim_config
+    sim = Simulation(sim_config("lego_branch", 4, seed, 60.0, fault_texts=(fault,)))
+    return sim, sim.run().summary()
+
+
+def test_a_restarted_zone_takes_each_trains_way_from_its_board_and_turns_none():
+    """Found by the campaign: a new zone put every train on its first leg and told the boards running backwards to
+    turn, and a train standing on the passing loop's westbound track was turned onto a leg that does not run it."""
+    sim, summary = _line_run("controller_restart:at_s=26.6,duration_s=1.555")
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    for train in sim.trains:   # the zone's leg runs the way the virtual train's does
+        assert sim.zc.trains[train.train_id].setup.legs[sim.zc.trains[train.train_id].leg].backwards == \
+            (train.encoder.way < 0)
+
+
+def test_a_board_that_restarts_on_a_backwards_leg_does_not_turn_its_train_off_the_plan():
+    """A restarted board drives forward from boot; the train turns only once it is driven the other way (the sim
+    turned it at the reboot, onto a leg that does not run the westbound loop track, and raised)."""
+    sim, summary = _line_run("reboot:at_s=28.2,train=T1")
+    assert summary["collisions"] == summary["authority_overruns"] == summary["switch_violations"] == 0
+    t1 = next(t for t in sim.trains if t.train_id == "T1")
+    assert t1.legs[t1.leg].backwards   # it stands on its westbound leg still

@@ -177,27 +177,28 @@ def _report_encoder():
     version, topic_report = wire.VERSION, wire.topic_report
 
     def encode_report(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips, tags, faults,
-                      rng=None):
-        if not (set(map(type, (boot, seq, t_ms, odo_mm, v_mmps, duty_pct, cseq, csid))) == _INT_ONLY
+                      rng=None, way=1):
+        if not (set(map(type, (boot, seq, t_ms, odo_mm, v_mmps, duty_pct, cseq, csid))) == _INT_ONLY and way in (1, -1)
                 and type(mode) is str and mode in modes and plain_id(train_id)):
             return board_encode(key, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid, ips,
-                                tags, faults, rng)
+                                tags, faults, rng, way)
         ips_json, ips = _list_json(ips, names)
         tags_json, tags = _list_json(tags, names)
         faults_json, faults = _list_json(faults, names)
         body = _REPORT_JSON % (version, train_id, boot, seq, t_ms, odo_mm, v_mmps, duty_pct, mode, cseq, csid,
                                ips_json, tags_json, faults_json)
-        if rng is None:
-            body = (body + "}").encode()
-        else:
+        if rng is not None:
             rng_json, rng = _list_json(rng, names)
-            body = (body + ',"rng":' + rng_json + "}").encode()
+            body += ',"rng":' + rng_json
+        body = (body + (',"dir":1}' if way < 0 else "}")).encode()
         if _WRITTEN is not None and ips is not _ODD and tags is not _ODD and faults is not _ODD and rng is not _ODD:
             msg = {"v": version, "k": "rep", "id": train_id, "boot": boot, "seq": seq, "t_ms": t_ms, "odo_mm": odo_mm,
                    "v_mmps": v_mmps, "duty": duty_pct, "mode": mode, "cseq": cseq, "csid": csid, "ips": ips,
                    "tags": tags, "flt": faults}
             if rng is not None:
                 msg["rng"] = rng
+            if way < 0:
+                msg["dir"] = 1
             _written(body, msg)
         return seal(key, topic_report(train_id), body)
 

@@ -30,6 +30,8 @@ def _type_and_range(kind: str, name: str, bounds, message_kind: str) -> tuple:
         return "str", f"1-{wire._ID_MAX_LEN} characters"
     if kind == "int":
         return "int", range_text(*bounds)
+    if kind == "int?":
+        return "int or absent", range_text(*bounds) + f"; absent: {bounds[0]}"
     if kind == "choice":
         return "str", "one of " + _ticked(bounds)
     if kind == "names":

@@ -117,3 +117,15 @@ def turned_head_s(old, new, head_s, length_m):
     if s is None:
         raise ValueError(f"leg {new.frame.name} does not run section {section}, where the train reverses")
     return s
+
+
+def turned_leg(legs, k, head_s, length_m):
+    """The leg a train of `length_m` on leg `k` with its head at `head_s` runs on once it has reversed: the next one
+    in the plan that runs the other way over the section its tail is on (the next leg, at a leg's end)."""
+    section, _offset = legs[k].route.locate(head_s - length_m)
+    n = len(legs)
+    for j in range(k + 1, k + n):
+        leg = legs[j % n]
+        if leg.backwards != legs[k].backwards and any(name == section for name, _f in leg.route.steps):
+            return j % n
+    return (k + 1) % n

@@ -11,7 +11,7 @@ import hashlib
 from cbtc.firmware import obu as obu_module
 from cbtc.protocol import fast_wire, wire
 from cbtc.railway import physics
-from cbtc.railway.legs import turned_head_s
+from cbtc.railway.legs import turned_head_s, turned_leg
 from cbtc.sim.drivers import SimEncoder, SimIps, SimMotor, SimRfid, SimTrainLine
 
 
@@ -132,7 +132,7 @@ class VirtualTrain:
         """Standing, its board turned: it runs the other end first, on its next leg (the head where the tail
         was); its sensors stay on the end they are fitted to, and read on the leg's `sensors` frame."""
         old = self.legs[self.leg]
-        self.leg = (self.leg + 1) % len(self.legs)
+        self.leg = turned_leg(self.legs, self.leg, self.s0_m + self.travelled_m, self.length_m)
         self.turns += 1
         new = self.legs[self.leg]
         self.s0_m = turned_head_s(old, new, self.s0_m + self.travelled_m, self.length_m) - self.travelled_m
@@ -199,8 +199,9 @@ class VirtualTrain:
         dt_s = 0.0 if self._last_s is None else now_s - self._last_s
         self._last_s = now_s
         self._now_s = now_s
-        if self.legs is not None and self.v_mps == 0.0 and self.encoder.way != self.cab and not self.reversing:
-            self._turn()   # its board turned, standing (it told its encoder so): the other end leads now
+        if self.legs is not None and self.v_mps == 0.0 and self.encoder.way != self.cab and self.motor.duty_pct \
+                and not self.reversing:
+            self._turn()   # its board drives it the other way, standing (it told its encoder so): the other end leads
         if dt_s > 0 and self.reversing and not self.stopped_dead:
             self._reverse_step(dt_s)
         elif dt_s > 0 and self.rolling_back:

@@ -8,7 +8,7 @@ from cbtc.zone.train_state cimport TrainState
 
 cdef class Estimators:
     cdef object __weakref__
-    cdef public object layout, params, refusals, factory
+    cdef public object layout, params, refusals, factory, facing
 
     cpdef fresh(self, TrainState state)
     @cython.locals(report=dict, previous=dict)

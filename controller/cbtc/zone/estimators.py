@@ -19,6 +19,7 @@ class Estimators:
         self.params = params
         self.refusals = refusals
         self.factory = factory   # (layout, profile) -> a fresh estimator
+        self.facing = None       # on a line trains reverse on: cbtc.zone.turns.Turns, which faces a train first seen
 
     def fresh(self, state):
         """A new estimator for `state`'s train, knowing nothing."""
@@ -27,6 +28,8 @@ class Estimators:
     def feed(self, state, report, previous, payload, recv_s):
         """Hand an accepted report to the train's estimator, unless its encoder failed or its odometer jumped (then
         the train is located afresh); the report as taken (its tags dropped when the odometer's frame changed)."""
+        if not state.faced:   # on a line: which way the train faces
+            self.facing.face(state, report)
         faults = ENCODER_FAULTS.intersection(report["flt"])
         jump_mm = 0 if previous is None else plausibility.odometer_jump_mm(report, previous,
                                                                            state.setup.profile.v_noload_mps)

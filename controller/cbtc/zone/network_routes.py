@@ -389,5 +389,6 @@ def network_routes(layout, trains, params, policy, estimators):
                            params.margin_m, fixed_blocks=policy.uses_blocks)
     if any(st.setup.legs for st in trains.values()):
         routes.turns = Turns(routes, estimators, params.k_sigma)
+        estimators.facing = routes.turns
         routes.dispatch = LineDispatch(layout.graph, {t: st.setup.legs for t, st in trains.items()}, routes._waits)
     return routes

@@ -13,4 +13,4 @@ cdef class TrainState:
     cdef public object sigma_m, authority, mode, rng_gap, gap_alarm, gap_alarms
     cdef public object deaf_since_s, encoder_failed, encoder_failures, odometer_jumps, measurements_dropped, failures
     cdef public object failures_said, reports_taken, reach_m, horizon_m, tail, track_m, doubt_span, swept_from_m, _memo
-    cdef public object handed
+    cdef public object handed, faced

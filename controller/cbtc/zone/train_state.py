@@ -56,6 +56,7 @@ class TrainState:
         self.limited_by = None       # what limited its last command: the authority's reason, or why it is held
         self.eoa_mm = None
         self.travel_dir = 0          # the direction of travel commanded (the command's `dir`): 0 forward, 1 backwards
+        self.faced = not setup.legs  # its way taken from its board's report (cbtc.zone.turns)
         self.cmd_seq = 0
         self.command = None          # the newest command sent (a records.Command)
         self.handed = None           # the TrainRecord another zone handed this train over with, until its first report

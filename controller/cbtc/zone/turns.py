@@ -7,6 +7,11 @@ and would refuse a turn). Nothing it held survives the turn: its routes are rele
 leg's frame, where its tail was declared as its head's position by the zone's own estimate, covering that
 estimate's uncertainty, for the IPS or a balise to confirm. Its commands then name the new direction (`dir`), which
 its board takes standing (docs/protocol.md).
+
+A zone that has never seen a train (just started, or handed it) does not know which way it faces: it takes the way
+from the board's first report (`dir`) and puts the train on its next leg that runs that way (`face_board`), so that
+it never turns a train it did not bring to a leg's end. A train it knew whose board restarts (facing forward) keeps
+its leg, and the board is told its way back, standing.
 """
 
 import logging
@@ -33,11 +38,11 @@ class Turns:
         if not st.setup.legs or st.report is None or not st.estimator.localized:
             return False
         report = st.report   # standing and undriven (the board takes a turn only so) for TURN_STILL_S
-        if report["v_mmps"] or report["duty"] or st.odo_moved:
-            self._driven_s[st.train_id] = st.report_t_s
+        if report["v_mmps"] or report["duty"] or st.odo_moved or st.train_id not in self._driven_s:
+            self._driven_s[st.train_id] = st.report_t_s   # (first seen: it stands from then on, at the earliest)
         if st.dwell_until_s is not None or (st.stops and st.next_stop != NO_MORE_STOPS):
             return False
-        if now_s - self._driven_s.get(st.train_id, now_s) < TURN_STILL_S or \
+        if now_s - self._driven_s[st.train_id] < TURN_STILL_S or \
                 st.frame.length_m - st.newest_estimate().s_m > END_M:
             st.turn_at_s = None
             return False
@@ -66,3 +71,24 @@ class Turns:
         self.count += 1
         log.info("train %s: reversed at the end of its leg, onto %s (head %.3f m, within %.3f m)", st.train_id,
                  new.frame.name, head_s, tol_m)
+
+
+    def face(self, st, report):
+        """The first report this zone takes of `st`'s train on a line: the train is put on its next leg (from the
+        one it is on) that runs the way the board drives, located afresh on it, unless its leg runs that way."""
+        st.faced = True
+        legs, back = st.setup.legs, report.get("dir", 0) == 1
+        if legs[st.leg].backwards == back:
+            return
+        n = len(legs)
+        k = next((k % n for k in range(st.leg + 1, st.leg + n) if legs[k % n].backwards == back), None)
+        if k is None:   # every leg runs the other way: the board is told the leg's way, standing
+            return
+        leg = legs[k]
+        st.leg, st.turn_at_s, st.next_stop, st.leaving = k, None, None, None
+        st.frame, st.sensor_frame, st.stops, st.track_m = leg.frame, leg.sensors, leg.stops, leg.frame.length_m
+        st.travel_dir = 1 if back else 0
+        self.routes.frames[st.train_id] = leg.route   # it holds no route yet: this zone has not commanded it
+        st.relocate(self.estimators.fresh(st))
+        log.info("train %s: its board drives %s: on %s", st.train_id, "backwards" if back else "forward",
+                 leg.frame.name)
