@@ -30,7 +30,8 @@ class TrainState:
 
     frame_of_leg: where its sensors read (`sensor_frame`: the frame, or the frame shifted when it runs the other end
     first), which of its legs it runs on a line it reverses on (`leg`), when it turns at the end of one (`turn_at_s`,
-    held until then: cbtc.zone.turns), and the stops of its plan on its frame (`stops`)."""
+    held until then: cbtc.zone.turns), the stops of its plan on its frame (`stops`), and whether the zone has taken
+    the way it faces from its board's report yet (`faced`)."""
 
     def __init__(self, setup: TrainSetup, estimator, rank: int = 0, on_change=None):
         self.setup = setup
@@ -55,8 +56,7 @@ class TrainState:
         self.safe_m = None           # distance the safety limit allowed at the last command (m)
         self.limited_by = None       # what limited its last command: the authority's reason, or why it is held
         self.eoa_mm = None
-        self.travel_dir = 0          # the direction of travel commanded (the command's `dir`): 0 forward, 1 backwards
-        self.faced = not setup.legs  # its way taken from its board's report (cbtc.zone.turns)
+        self.travel_dir, self.faced = 0, not setup.legs   # the `dir` commanded: 1 backwards
         self.cmd_seq = 0
         self.command = None          # the newest command sent (a records.Command)
         self.handed = None           # the TrainRecord another zone handed this train over with, until its first report
