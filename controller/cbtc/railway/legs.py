@@ -119,13 +119,20 @@ def turned_head_s(old, new, head_s, length_m):
     return s
 
 
+def next_leg(legs, k, backwards, section=None):
+    """The index of the first leg after leg `k` in the plan's round that runs `backwards` (or not), over `section`
+    when it is given; None if there is none."""
+    n = len(legs)
+    for j in range(k + 1, k + n):
+        leg = legs[j % n]
+        if leg.backwards == backwards and (section is None or any(name == section for name, _f in leg.route.steps)):
+            return j % n
+    return None
+
+
 def turned_leg(legs, k, head_s, length_m):
     """The leg a train of `length_m` on leg `k` with its head at `head_s` runs on once it has reversed: the next one
     in the plan that runs the other way over the section its tail is on (the next leg, at a leg's end)."""
     section, _offset = legs[k].route.locate(head_s - length_m)
-    n = len(legs)
-    for j in range(k + 1, k + n):
-        leg = legs[j % n]
-        if leg.backwards != legs[k].backwards and any(name == section for name, _f in leg.route.steps):
-            return j % n
-    return (k + 1) % n
+    found = next_leg(legs, k, not legs[k].backwards, section)
+    return (k + 1) % len(legs) if found is None else found

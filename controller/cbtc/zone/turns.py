@@ -9,14 +9,14 @@ estimate's uncertainty, for the IPS or a balise to confirm. Its commands then na
 its board takes standing (docs/protocol.md).
 
 A zone that has never seen a train (just started, or handed it) does not know which way it faces: it takes the way
-from the board's first report (`dir`) and puts the train on its next leg that runs that way (`face_board`), so that
+from the board's first report (`dir`) and puts the train on its next leg that runs that way (`Turns.face`), so that
 it never turns a train it did not bring to a leg's end. A train it knew whose board restarts (facing forward) keeps
 its leg, and the board is told its way back, standing.
 """
 
 import logging
 
-from cbtc.railway.legs import turned_head_s
+from cbtc.railway.legs import next_leg, turned_head_s
 from cbtc.zone.stations import NO_MORE_STOPS
 
 log = logging.getLogger("cbtc.zone")
@@ -59,10 +59,7 @@ class Turns:
         head_s = turned_head_s(old, new, est.s_m, st.setup.profile.length_m)
         tol_m = self.k_sigma * est.sigma_s_m + est.ahead_m + est.behind_m + 0.02
         self.routes.turn(st, new.route, now_s)
-        st.leg, st.turn_at_s = k, None
-        st.frame, st.sensor_frame, st.stops, st.track_m = new.frame, new.sensors, new.stops, new.frame.length_m
-        st.next_stop = st.leaving = None
-        st.travel_dir = 1 if new.backwards else 0
+        _put_on(st, k)
         estimator = self.estimators.fresh(st)
         estimator.declare_position(head_s, tol_m)
         if hasattr(estimator, "carry_wheel"):   # the same wheel: its scale as the balises vouched for it
@@ -72,7 +69,6 @@ class Turns:
         log.info("train %s: reversed at the end of its leg, onto %s (head %.3f m, within %.3f m)", st.train_id,
                  new.frame.name, head_s, tol_m)
 
-
     def face(self, st, report):
         """The first report this zone takes of `st`'s train on a line: the train is put on its next leg (from the
         one it is on) that runs the way the board drives, located afresh on it, unless its leg runs that way."""
@@ -80,15 +76,19 @@ class Turns:
         legs, back = st.setup.legs, report.get("dir", 0) == 1
         if legs[st.leg].backwards == back:
             return
-        n = len(legs)
-        k = next((k % n for k in range(st.leg + 1, st.leg + n) if legs[k % n].backwards == back), None)
+        k = next_leg(legs, st.leg, back)
         if k is None:   # every leg runs the other way: the board is told the leg's way, standing
             return
-        leg = legs[k]
-        st.leg, st.turn_at_s, st.next_stop, st.leaving = k, None, None, None
-        st.frame, st.sensor_frame, st.stops, st.track_m = leg.frame, leg.sensors, leg.stops, leg.frame.length_m
-        st.travel_dir = 1 if back else 0
-        self.routes.frames[st.train_id] = leg.route   # it holds no route yet: this zone has not commanded it
+        _put_on(st, k)
+        self.routes.frames[st.train_id] = legs[k].route   # it holds no route yet: this zone has not commanded it
         st.relocate(self.estimators.fresh(st))
         log.info("train %s: its board drives %s: on %s", st.train_id, "backwards" if back else "forward",
-                 leg.frame.name)
+                 legs[k].frame.name)
+
+
+def _put_on(st, k):
+    """`st`'s train on leg `k` of its plan: its frames, stops and direction those of that leg, no stop under way."""
+    leg = st.setup.legs[k]
+    st.leg, st.turn_at_s, st.next_stop, st.leaving = k, None, None, None
+    st.frame, st.sensor_frame, st.stops, st.track_m = leg.frame, leg.sensors, leg.stops, leg.frame.length_m
+    st.travel_dir = 1 if leg.backwards else 0
