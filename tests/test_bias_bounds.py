@@ -67,3 +67,24 @@ def test_a_train_that_turns_keeps_the_band_the_balises_vouched_for_its_wheel():
         Turns.turn = turn
     assert handed and all(before is not None and after == before for before, after in handed), handed
     assert all(0.9 < low < high < 1.15 for (low, high), _ in handed), handed   # the wheel reads 1-3 % long
+
+
+def test_a_wheel_that_changes_while_the_ips_is_dark_stays_inside_its_authority_and_bounds():
+    """Found by the campaign: the balises vouched for T3's wheel (1.000-1.039 odometer m per m), then it read 7.6 %
+    short with the IPS off; the zone kept the vouched band past the newest read and granted T3 8 mm past the end of
+    its route. With the IPS dark the band joins the prior one, so the authority and the position cover it."""
+    uncovered_m, summary = _run("lego_branch", 3, 32, 60.0,
+                                "encoder_drift:at_s=29.9,duration_s=26.195,factor=0.924,train=T3", "T3")
+    assert uncovered_m <= 0.0
+    assert summary["granted_beyond_m"] <= 0.0
+    assert summary["authority_overruns"] == summary["collisions"] == 0
+
+
+def test_the_balises_band_holds_only_while_the_ips_watches_the_wheel():
+    from cbtc.estimation.balise_reads import DARK_M, wheel_band
+    vouched = (0.0, 1.0, 0.02, 1.01, 1.03)
+    assert wheel_band(vouched, 5.0, 5.0 + DARK_M, 0.09) == (1.01, 1.03)   # a fix taken a moment ago
+    assert wheel_band(vouched, 5.0, 5.0 + 2 * DARK_M, 0.09) == (0.91, 1.09)   # none taken since: the prior band
+    assert wheel_band(vouched, None, 5.0, 0.09) == (0.91, 1.09)
+    assert wheel_band((0.0, 1.0, 0.02, None, None), 5.0, 5.0, 0.09) == (0.91, 1.09)   # nothing vouched yet
+    assert wheel_band((0.0, 1.0, 0.02, 0.85, 1.2), None, 9.0, 0.09) == (0.85, 1.2)   # a band wider than the prior

@@ -288,7 +288,9 @@ def test_train_moved_by_hand_is_covered_until_a_balise_places_it(loop):
     assert est.counters()["disagreements"] == 1
     assert along_error_m(loop, now.s_m, s_true) < -1.1                       # the filter keeps its wheel's position
     assert now.ahead_m >= -along_error_m(loop, now.s_m, s_true)   # and covers the IPS's; behind, the wheel's reach
-    assert now.behind_m < 0.1   # over the 4.5 m since the last balise, at the scale the balises vouch for (2 %)
+    # over the 4.5 m since the last balise: with no fix taken the IPS does not watch the wheel, so at the prior band
+    # (1 -+ 9 %), not only the one the balises vouched for (2 % long)
+    assert now.behind_m < 0.3
     assert est.odometer_per_m_low(3.0) == 0.5
     # a balise (its position in its telegram) read where the IPS puts the train
     last = moved[-1]
@@ -329,8 +331,9 @@ def test_ips_offset_is_covered_and_never_believed(loop):
         if est.confirmed:   # before its first balise, the IPS placement's own bias is covered both ways
             widest = max(widest, now.behind_m)
             # the wheel's reach from the last balise: at the prior band (9 %) over the travel since it until
-            # balises vouch for the wheel's scale, then at the band they vouch for (7 % over the first 0.9 m)
-            assert now.ahead_m < 0.07
+            # balises vouch for the wheel's scale, then at the band they vouch for (7 % over the first 0.9 m), or
+            # the prior band again while the fixes are gated (no IPS watches the wheel)
+            assert now.ahead_m < 0.1
     assert 0.45 < widest < 0.8
     assert est.counters()["disagreements"] >= 1 and not est.counters()["disagreeing"]
     assert est.estimate(controller_s(off[-1]["t_ms"])).behind_m < 0.01

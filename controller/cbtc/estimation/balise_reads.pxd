@@ -8,4 +8,4 @@ cdef class BaliseReads:
     cdef object __weakref__
     cdef public object layout, noise, params
 
-    cpdef reckon(self, TrackUkf f, reach, d_m, scale_sigma0, vouched=*)
+    cpdef reckon(self, TrackUkf f, reach, d_m, scale_sigma0, vouched=*, ips_d_m=*)

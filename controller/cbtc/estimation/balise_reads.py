@@ -11,6 +11,20 @@ from cbtc.railway.geometry import circular_offset_m
 STORY_TOL_M = 0.1    # two gated balise reads in a row whose stories differ by no more (m) tell the same story
 WORN_SHARE = 0.15    # ... that a wheel this far wrong (worn, dirty, slipping: of the travel) can tell
 VOUCH_M = 0.3        # balise reads this much further apart than their spreads vouch for the wheel's scale
+DARK_M = 0.3         # odometer metres past the newest IPS fix taken after which the IPS no longer watches the wheel
+
+
+def wheel_band(vouched, ips_d_m, d_m, prior):
+    """(low, high) odometer m per true m the wheel reads at odometer `d_m`: the band the balises vouched for
+    (BaliseReads.vouch) while the IPS watches the wheel (a fix taken `ips_d_m` within DARK_M of travel), else joined
+    with the prior band (1 -+ `prior`): a wheel may change after the reads that vouched for it (dirt, a tyre come
+    off), and between balises only the IPS would show it."""
+    low, high = 1.0 - prior, 1.0 + prior
+    if vouched is None or vouched[3] is None:
+        return low, high
+    if ips_d_m is not None and abs(d_m - ips_d_m) <= DARK_M:
+        return vouched[3], vouched[4]
+    return min(low, vouched[3]), max(high, vouched[4])
 
 
 class BaliseReads:
@@ -34,11 +48,11 @@ class BaliseReads:
             f.reopen_scale(3.0 * self.params.scale_sigma)
         return True
 
-    def reckon(self, f, reach, d_m, scale_sigma0, vouched=None):
+    def reckon(self, f, reach, d_m, scale_sigma0, vouched=None, ips_d_m=None):
         """`reach` carried to odometer `d_m` by the wheel alone, at the lowest and highest scale the filter (`f`)
-        allows (3 sigma; `scale_sigma0`: the scale's sigma while it is not in the state) or the balises (`vouched`,
-        BaliseReads.vouch; until they do, the prior band), within the band a wheel can have: a scale the IPS taught
-        the filter (a biased IPS teaches a wrong one) never narrows what the balises allow."""
+        allows (3 sigma; `scale_sigma0`: the scale's sigma while it is not in the state) or the balises (wheel_band
+        of `vouched` and `ips_d_m`, the newest IPS fix's odometer), within the band a wheel can have: a scale the IPS
+        taught the filter (a biased IPS teaches a wrong one) never narrows what the balises allow."""
         if reach is None:
             return None
         low_s_m, high_s_m, d0_m, ref_d_m = reach
@@ -49,11 +63,8 @@ class BaliseReads:
             k, sd = float(f.mean[K]), sqrt(max(f.cov[K][K], 0.0))
         else:
             k, sd = 0.0, scale_sigma0
-        if vouched is not None and vouched[3] is not None:
-            band_low, band_high = vouched[3], vouched[4]
-        else:
-            prior = SCALE_K_SIGMA * max(self.params.scale_sigma, scale_sigma0)
-            band_low, band_high = 1.0 - prior, 1.0 + prior
+        prior = SCALE_K_SIGMA * max(self.params.scale_sigma, scale_sigma0)
+        band_low, band_high = wheel_band(vouched, ips_d_m, d_m, prior)
         low = min(max(min(1.0 + k - SCALE_K_SIGMA * sd, band_low), WHEEL_LOWEST), WHEEL_HIGHEST)
         high = min(max(max(1.0 + k + SCALE_K_SIGMA * sd, band_high), WHEEL_LOWEST), WHEEL_HIGHEST)
         if run_m < 0.0:

@@ -233,7 +233,8 @@ class UkfEstimator:
         f.predict_to(event.t_s)
         new = state.copy_with(None)
         if event.kind == "odo":
-            new.reach = self._reads.reckon(f, state.reach, event.data[0], self._scale_sigma0, state.vouched)
+            new.reach = self._reads.reckon(f, state.reach, event.data[0], self._scale_sigma0, state.vouched,
+                                           state.ips_d_m)
             f.update_odometer(event.data[0])
         elif event.kind == "roll":
             # a roll goes one way all along, whichever it is: its steps add up to the spread, not in quadrature
@@ -315,7 +316,7 @@ class UkfEstimator:
         suspect = state.disagree is not None and abs(new.innovations[-1]) > 3.0 * self.profile.ips_sigma_m
         if not suspect and f.update_ips(*data):
             new.ips_used += 1
-            new.gated, new.consensus = (), None
+            new.gated, new.consensus, new.ips_d_m = (), None, d_m
             if state.pending == "tag":
                 # the IPS, independent of the tag, agrees with a tag placement: `locate_fixes` in a row confirm it
                 new.agreeing += 1

@@ -9,7 +9,7 @@ cdef class FilterState:
     cdef object __weakref__
     cdef public object snap, ips_used, ips_rejected, tags_used, tags_rejected, gated
     cdef public object relocations, consensus, innovations, disagree, disagreements, tag_offset
-    cdef public object speed_steps, doubt, pending, agreeing, reach, tag_story, vouched
+    cdef public object speed_steps, doubt, pending, agreeing, reach, tag_story, vouched, ips_d_m
 
     cpdef covered(self, s_m, sigma_s_m, ring_m)
     cpdef copy_with(self, snap)

@@ -31,11 +31,12 @@ class FilterState:
 
     __slots__ = ("snap", "ips_used", "ips_rejected", "tags_used", "tags_rejected", "gated", "relocations",
                  "consensus", "innovations", "disagree", "disagreements", "tag_offset", "speed_steps", "doubt",
-                 "pending", "agreeing", "reach", "tag_story", "vouched")
+                 "pending", "agreeing", "reach", "tag_story", "vouched", "ips_d_m")
 
     def __init__(self, snap, ips_used=0, ips_rejected=0, tags_used=0, tags_rejected=0, gated=(), relocations=0,
                  consensus=None, innovations=(), disagree=None, disagreements=0, tag_offset=None, speed_steps=0,
-                 doubt=None, pending=None, agreeing=0, reach=None, tag_story=None, vouched=None):
+                 doubt=None, pending=None, agreeing=0, reach=None, tag_story=None, vouched=None,
+                 ips_d_m=None):
         self.snap = snap
         self.ips_used = ips_used
         self.ips_rejected = ips_rejected
@@ -69,6 +70,7 @@ class FilterState:
         #                                wheel was last in doubt (odometer, head, its spread) and the scale band the
         #                                travel from it to the newest read allows (None until long enough): what the
         #                                balises, not the IPS, say of the wheel (BaliseReads.vouch); None: no read yet
+        self.ips_d_m = ips_d_m         # the odometer (m) at the newest IPS fix the filter took; None: none yet
 
     def healthy(self) -> bool:
         """Its filter is finite and its covariance positive definite."""
@@ -106,4 +108,4 @@ class FilterState:
         return FilterState(snap, self.ips_used, self.ips_rejected, self.tags_used, self.tags_rejected, self.gated,
                       self.relocations, self.consensus, self.innovations, self.disagree, self.disagreements,
                       self.tag_offset, self.speed_steps, self.doubt, self.pending, self.agreeing, self.reach,
-                      self.tag_story, self.vouched)
+                      self.tag_story, self.vouched, self.ips_d_m)

@@ -9,9 +9,10 @@ filter's newest state.
 
 from math import isfinite, sqrt
 
+from cbtc.estimation.balise_reads import wheel_band
 from cbtc.estimation.motor_gain import MotorGain
 from cbtc.estimation.speed_envelope import SPEED_LAG_S, SpeedEnvelope
-from cbtc.estimation.ukf_model import K
+from cbtc.estimation.ukf_model import D, K
 from cbtc.estimation.ukf_params import SCALE_K_SIGMA, WHEEL_HIGHEST, WHEEL_LOWEST
 
 ADHESION_MPS2 = 3.0   # no train stops faster than this (wheel adhesion; the board's _ADHESION_MMPS2)
@@ -186,11 +187,11 @@ class WheelWatch:
         k_m = min(float(x[K]), k_sigma * self.params.scale_sigma) if k_sigma > 0.0 else float(x[K])
         low = 1.0 + k_m - k_sigma * sqrt(max(P[K][K], 0.0))
         if k_sigma > 0.0 and isfinite(low):
-            # no lower than the balises allow (BaliseReads.vouch; until they do, the prior band): a scale the IPS
-            # taught the filter (a biased IPS teaches a wrong one) never stretches the odometer an authority allows
-            vouched = state.vouched
-            low = min(low, vouched[3] if vouched is not None and vouched[3] is not None
-                      else 1.0 - k_sigma * self.params.scale_sigma)
+            # no lower than the balises allow (wheel_band; until they vouch, or with the IPS dark, the prior band):
+            # a scale the IPS taught the filter (a biased IPS teaches a wrong one) never stretches the odometer an
+            # authority allows
+            band = wheel_band(state.vouched, state.ips_d_m, float(x[D]), k_sigma * self.params.scale_sigma)
+            low = min(low, band[0])
         return max(low, WHEEL_LOWEST) if isfinite(low) else low
 
     def scale_high(self, state) -> float:
