@@ -153,6 +153,19 @@ def test_the_dispatcher_holds_a_run_that_could_only_end_in_trains_facing_each_ot
     assert dispatch.refusal("T3", "middle_loop") == ""
 
 
+def test_a_train_read_at_start_inside_its_place_may_run_on_to_its_stop_there():
+    """A zone restarted while a train ran into its loop track counts it there; the run on to its stop within that
+    track is its own (it was refused as not its next place, and the train stood short of its stop for good)."""
+    _config, dispatch = _branch_dispatch()
+    at_loop = next((k, i) for k, i, name in dispatch.places["T1"] if name == "middle_loop")
+    dispatch.start({"T1": (*at_loop, "middle_loop"), "T2": (0, 0, "west_2"), "T3": (0, 0, "east_1"),
+                    "T4": (0, 0, "east_2")})
+    assert dispatch.refusal("T1", "middle_loop") == ""
+    dispatch.moved("T1", "middle_loop")
+    assert dispatch.at["T1"] == "middle_loop" and dispatch.places["T1"][dispatch.index["T1"]][2] == "west_1"
+    assert "next place is west_1" in dispatch.refusal("T1", "middle_loop")   # once: it is there now
+
+
 def test_four_trains_share_a_line_with_two_termini_and_a_passing_loop_without_deadlock():
     sim = Simulation(network_queue(load_track("lego_branch"), 4, seed=1, duration_s=150.0))
     summary = sim.run().summary()

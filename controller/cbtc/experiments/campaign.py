@@ -28,9 +28,7 @@ NONE, COMBINED, OVERLAPPING, PACKED = "none", "combined", "overlapping", "packed
 CLASSES = (NONE,) + tuple(sorted(faults.FAULTS)) + (COMBINED, OVERLAPPING, PACKED)
 OVERLAP_S = 2.0   # overlapping: each fault begins within this long after the first
 PACKED_GAP_M = (0.05, 0.3)   # packed_start: the gap from a tail to the next head at the start
-LAYOUTS = ("itb_square", "lego_oval", "lego_passing_loop", "lego_figure_eight")
-# lego_branch only with --layouts: an IPS bias or a stuck encoder there can still take a train inside the margin
-# before a buffer stop (2 of 90 runs)
+LAYOUTS = ("itb_square", "lego_oval", "lego_passing_loop", "lego_figure_eight", "lego_branch")
 FLEET_SIZES = (2, 3, 4, 5, 6)
 NETWORK_FLEET = 4   # at most this many trains on a track network (on its longest section, or a line's terminus tracks)
 

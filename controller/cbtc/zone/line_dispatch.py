@@ -32,19 +32,24 @@ class LineDispatch:
                                      {t: [(name,) for _k, _i, name in found] for t, found in self.places.items()})
         self.at = None      # train -> the place it stands at or is bound to; None until every train is located
         self.index = {}     # train -> the index of its next place
+        self.within = set()  # trains read at start on a place's step: a run within it is theirs until they leave
 
     def start(self, where):
         """Read the picture from `where`: train -> (its leg index, the step its head is on, that step's section)."""
-        self.at, self.index = {}, {}
+        self.at, self.index, self.within = {}, {}, set()
         for train, (leg, step, section) in where.items():
             found = self.places[train]
             self.at[train] = section
+            if (leg, step, section) in found:
+                self.within.add(train)
             self.index[train] = next((n for n, (k, i, _s) in enumerate(found) if (k, i) > (leg, step)), 0)
 
     def refusal(self, train, place):
         """Why a run of `train` to `place` may not be set now ("" when it may)."""
         if self.at is None:
             return "the dispatcher has not yet seen every train located"
+        if train in self.within and place == self.at[train]:
+            return ""   # it stands in the place it counts as at, short of its stop (a zone restarted under it)
         _k, _i, due = self.places[train][self.index[train]]
         if place != due:
             return f"its next place is {due}, not {place}"
@@ -53,6 +58,11 @@ class LineDispatch:
         return ""
 
     def moved(self, train, place):
-        """A run of `train` to `place` was set: it counts as there."""
+        """A run of `train` to `place` was set: it counts as there (already, for a run within that place)."""
+        if train in self.within:
+            self.within.discard(train)
+            if place == self.at[train]:
+                return
         self.at[train] = place
         self.index[train] = (self.index[train] + 1) % len(self.places[train])
+
