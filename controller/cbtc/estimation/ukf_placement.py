@@ -85,6 +85,7 @@ def _at_fixes(est, event, d_m):
         used = FilterState(None, ips_used=est.params.locate_fixes,
                            doubt=(min(low_m, -bias_m), max(high_m, bias_m)), pending="ips")
     used.reach = est._reads.reach_around(s_m, 3.0 * sigma_s_m + (0.0 if fused is not None else bias_m), d_m)
+    used.ips_d_m = d_m   # placed by the fixes: the IPS watches the wheel from here
     if est._band0 is not None:   # the wheel's band, brought along by a train that turned
         used.vouched = (None, None, None) + tuple(est._band0)
     return used, s_m, sigma_s_m, d_m
